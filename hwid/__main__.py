@@ -1,0 +1,3 @@
+from hwid.cli import main
+
+main()

@@ -1,0 +1,77 @@
+"""Command line: thin. Each command parses its arguments, calls one library function, and turns
+known errors (:class:`hwid.HwidError`) into one line on stderr and exit code 2."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from hwid import HwidError, __version__
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="Identify Hammerstein-Wiener systems with Backlash / Backlash-Inverse input "
+                       "(Brouri et al.). See README.md.")
+
+
+def _version(value: bool):
+    if value:
+        typer.echo(f"hwid {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="Print the version and exit.")):
+    pass
+
+
+def _out_dir(out: Path) -> Path:
+    if out.exists() and not out.is_dir():
+        raise HwidError(f"--out {out}: exists and is not a directory")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+@app.command()
+def check(config: Path = typer.Argument(..., help="Config YAML to validate.")):
+    """Validate a config and exit (0 if it is usable, 2 with one line if not)."""
+    from hwid import config as C
+    cfg = C.load(config)
+    typer.echo(f"{config}: OK ({cfg.name}, plant {cfg.plant.kind}, config sha256 {cfg.sha256[:12]})")
+
+
+@app.command()
+def simulate(config: Path = typer.Argument(..., help="Config YAML."),
+             out: Path = typer.Option(..., "--out", help="Output directory (simulation.h5 goes here).")):
+    """Run the config's staircases and sines on its plant; write OUT/simulation.h5."""
+    from hwid import config as C
+    from hwid.simulate import simulate as run
+    cfg = C.load(config)
+    path = run(cfg, _out_dir(out))
+    typer.echo(f"wrote {path}")
+
+
+def main(argv: Optional[list[str]] = None) -> None:
+    """Entry point: run the app, map user errors to one line and exit code 2."""
+    try:
+        app(args=argv, standalone_mode=False)
+    except HwidError as err:
+        sys.stderr.write(f"hwid: error: {err}\n")
+        sys.exit(2)
+    except typer.Exit as e:
+        sys.exit(e.exit_code)
+    except typer.Abort:
+        sys.stderr.write("hwid: aborted\n")
+        sys.exit(130)
+    except KeyboardInterrupt:
+        sys.stderr.write("hwid: interrupted (results written so far are kept)\n")
+        sys.exit(130)
+    except Exception as err:  # click usage errors carry their own exit code
+        import click
+        if isinstance(err, click.ClickException):
+            err.show()
+            sys.exit(2 if err.exit_code in (1, 2) else err.exit_code)
+        raise
+    sys.exit(0)

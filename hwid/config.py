@@ -1,0 +1,369 @@
+"""The YAML schema: the only place that knows the config's key names and their checks.
+
+``load(path)`` reads YAML with the safe loader, validates every key (unknown keys are rejected with
+the nearest valid name), checks the physics (stable G with G(0) != 0, slopes > 0, d_plus > d_minus,
+borders that do not cross in the working range, levels and frequencies that make sense for dt)
+and returns a frozen :class:`Config`. Every failure raises :class:`ConfigError` whose message is one
+line: ``FILE: key.path: reason``. Every key is documented in ``configs/README.md``.
+"""
+from __future__ import annotations
+
+import difflib
+import hashlib
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal, Optional, Union
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from hwid import HwidError
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Pos = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNeg = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+
+
+class ConfigError(HwidError):
+    """A config that cannot be used; the message is one line naming file, key path and reason."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
+
+
+class Sampling(_Strict):
+    dt: Pos
+
+
+class InputNonlinearityCfg(_Strict):
+    type: Literal["backlash", "backlash_inverse"]
+    slope_up: Pos
+    slope_down: Pos
+    d_plus: Finite
+    d_minus: Finite
+    initial_state: Optional[Finite] = None
+
+    @model_validator(mode="after")
+    def _gap(self):
+        if not self.d_plus > self.d_minus:
+            raise ValueError(f"d_plus ({self.d_plus}) must be greater than d_minus ({self.d_minus})")
+        return self
+
+
+class LinearCfg(_Strict):
+    num: list[Finite] = Field(min_length=1)
+    den: list[Finite] = Field(min_length=1)
+    delay: NonNeg = 0.0
+
+    @model_validator(mode="after")
+    def _stable(self):
+        num = np.trim_zeros(np.asarray(self.num, float), "f")
+        den = np.trim_zeros(np.asarray(self.den, float), "f")
+        if den.size == 0:
+            raise ValueError("den is all zeros")
+        if num.size == 0:
+            raise ValueError("num is all zeros: G(s) = 0")
+        if num.size > den.size:
+            raise ValueError("G(s) is improper (num has a higher degree than den)")
+        if den.size > 1:
+            poles = np.roots(den)
+            if np.any(poles.real >= 0):
+                worst = poles[np.argmax(poles.real)]
+                raise ValueError(f"G(s) is not asymptotically stable (pole at {worst:.4g})")
+        if den[-1] == 0 or num[-1] == 0:
+            raise ValueError("G(0) must be nonzero and finite (the paper normalises G by G(0), eq. 4b)")
+        return self
+
+
+class PiecewisePiece(_Strict):
+    upper: Optional[Finite] = None  # right end of this piece (None on the last piece)
+    polynomial: list[Finite] = Field(min_length=1)
+
+
+class OutputNonlinearityCfg(_Strict):
+    polynomial: Optional[list[Finite]] = Field(default=None, min_length=1)
+    pieces: Optional[list[PiecewisePiece]] = Field(default=None, min_length=1)
+
+    @model_validator(mode="after")
+    def _one_form(self):
+        if (self.polynomial is None) == (self.pieces is None):
+            raise ValueError("give exactly one of 'polynomial' or 'pieces'")
+        if self.polynomial is not None:
+            if self.polynomial[0] != 0.0:
+                raise ValueError("h(0) must be 0 (the paper assumes h^-1(0) = 0): polynomial[0] must be 0")
+            if not any(c != 0 for c in self.polynomial):
+                raise ValueError("polynomial is identically zero")
+        else:
+            ups = [p.upper for p in self.pieces[:-1]]
+            if any(u is None for u in ups):
+                raise ValueError("every piece but the last needs 'upper'")
+            if self.pieces[-1].upper is not None:
+                raise ValueError("the last piece extends to +inf: leave out its 'upper'")
+            if any(b <= a for a, b in zip(ups, ups[1:])):
+                raise ValueError("piece 'upper' bounds must increase")
+        return self
+
+
+class NoiseCfg(_Strict):
+    std: NonNeg = 0.0
+    ar: Annotated[float, Field(ge=0.0, lt=1.0)] = 0.0   # AR(1) pole: 0 = white
+
+
+class PlantCfg(_Strict):
+    kind: Literal["hammerstein_wiener", "external"]
+    input_nonlinearity: Optional[InputNonlinearityCfg] = None
+    linear: Optional[LinearCfg] = None
+    output_nonlinearity: Optional[OutputNonlinearityCfg] = None
+    noise: NoiseCfg = NoiseCfg()
+    callable: Optional[str] = Field(default=None, pattern=r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
+    timeout: Optional[Pos] = None  # seconds per external call
+
+    @model_validator(mode="after")
+    def _kind(self):
+        if self.kind == "hammerstein_wiener":
+            missing = [k for k in ("input_nonlinearity", "linear", "output_nonlinearity") if getattr(self, k) is None]
+            if missing:
+                raise ValueError(f"a hammerstein_wiener plant needs {', '.join(missing)}")
+            if self.callable is not None:
+                raise ValueError("'callable' is only for kind: external")
+        else:
+            if self.callable is None:
+                raise ValueError("an external plant needs callable: \"package.module:function\"")
+        return self
+
+
+class StaircaseCfg(_Strict):
+    levels_up: list[Finite] = Field(min_length=2)
+    levels_down: list[Finite] = Field(min_length=2)
+    hold: Pos
+
+    @model_validator(mode="after")
+    def _monotone(self):
+        if any(b <= a for a, b in zip(self.levels_up, self.levels_up[1:])):
+            raise ValueError("levels_up must be strictly increasing (eq. 6)")
+        if any(b >= a for a, b in zip(self.levels_down, self.levels_down[1:])):
+            raise ValueError("levels_down must be strictly decreasing (eq. 13)")
+        return self
+
+
+class SineCfg(_Strict):
+    amplitude: Pos
+    frequencies: list[Pos] = Field(min_length=1)
+    periods: Annotated[int, Field(ge=1)]
+    lead_in_periods: Annotated[int, Field(ge=0)] = 3
+
+
+class ProtocolsCfg(_Strict):
+    staircase: Optional[StaircaseCfg] = None
+    sine: Optional[SineCfg] = None
+
+
+class NonlinearIdCfg(_Strict):
+    method: Literal["nls", "paper"] = "nls"
+    degree: Optional[Annotated[int, Field(ge=1, le=15)]] = None
+    max_degree: Annotated[int, Field(ge=1, le=15)] = 9
+
+
+class LinearIdCfg(_Strict):
+    method: Literal["nls", "paper"] = "nls"
+    harmonic: Optional[Annotated[int, Field(ge=1)]] = None
+    precompensator: Literal["auto", "backlash", "border_map"] = "auto"
+    max_order: Annotated[int, Field(ge=1, le=8)] = 4
+    fit_delay: bool = False
+
+
+class IdentificationCfg(_Strict):
+    nonlinear: NonlinearIdCfg = NonlinearIdCfg()
+    linear: LinearIdCfg = LinearIdCfg()
+
+
+class Config(_Strict):
+    name: Annotated[str, Field(min_length=1, pattern=r"^[A-Za-z0-9_.+-]+$")]
+    seed: Annotated[int, Field(ge=0)] = 0
+    sampling: Sampling
+    plant: PlantCfg
+    protocols: ProtocolsCfg
+    identification: IdentificationCfg = IdentificationCfg()
+
+    # set by load(): the source text and its hash (provenance); not config keys
+    source_text: str = Field(default="", exclude=True, repr=False)
+    source_path: str = Field(default="<config>", exclude=True, repr=False)
+
+    @property
+    def sha256(self) -> str:
+        return hashlib.sha256(self.source_text.encode()).hexdigest()
+
+
+# ---------------------------------------------------------------- physics checks (need the whole config)
+
+def _physics(cfg: Config) -> list[tuple[str, str]]:
+    errs: list[tuple[str, str]] = []
+    dt = cfg.sampling.dt
+    st, sn = cfg.protocols.staircase, cfg.protocols.sine
+    p = cfg.plant
+    if st is not None:
+        if st.hold < 20 * dt:
+            errs.append(("protocols.staircase.hold", f"{st.hold} s is fewer than 20 samples of dt = {dt} s"))
+        levels = st.levels_up + st.levels_down
+        lo, hi = min(levels), max(levels)
+        if p.kind == "hammerstein_wiener":
+            f = p.input_nonlinearity
+            for u in (lo, hi):
+                if f.type == "backlash":
+                    up, dn = f.slope_up * (u - f.d_plus), f.slope_down * (u - f.d_minus)
+                    bad = up > dn
+                else:
+                    up, dn = u / f.slope_up + f.d_plus, u / f.slope_down + f.d_minus
+                    bad = up < dn
+                if bad:
+                    errs.append(("plant.input_nonlinearity",
+                                 f"the borders cross inside the staircase range at u = {u:g} "
+                                 f"(ascending {up:.4g}, descending {dn:.4g}); narrow the levels or fix the slopes"))
+                    break
+        fixed = cfg.identification.nonlinear.degree
+        if fixed is not None:
+            for key, lv in (("levels_up", st.levels_up), ("levels_down", st.levels_down)):
+                if len(lv) < fixed + 1:
+                    errs.append((f"protocols.staircase.{key}",
+                                 f"{len(lv)} levels cannot support degree {fixed}: eq. (11) needs at least "
+                                 f"{fixed + 1} levels on the border"))
+    if sn is not None:
+        nyq = math.pi / dt
+        for i, w in enumerate(sn.frequencies):
+            if w >= nyq:
+                errs.append((f"protocols.sine.frequencies[{i}]",
+                             f"{w} rad/s is at or above the Nyquist frequency pi/dt = {nyq:.4g} rad/s"))
+            elif 2 * math.pi / w < 8 * dt:
+                errs.append((f"protocols.sine.frequencies[{i}]",
+                             f"{w} rad/s leaves fewer than 8 samples per period at dt = {dt} s"))
+    if p.kind == "hammerstein_wiener" and p.linear.delay > 0 and p.linear.delay > 1e6 * dt:
+        errs.append(("plant.linear.delay", "delay is more than 10^6 samples"))
+    return errs
+
+
+def _loc(loc: tuple) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+def _valid_keys(model: type[BaseModel]) -> list[str]:
+    return [k for k in model.model_fields if k not in ("source_text", "source_path")]
+
+
+def _model_at(loc: tuple) -> Optional[type[BaseModel]]:
+    """The pydantic model class that owns the mapping at ``loc`` (for key suggestions)."""
+    model: Any = Config
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        if not (isinstance(model, type) and issubclass(model, BaseModel)) or part not in model.model_fields:
+            return None
+        ann = model.model_fields[part].annotation
+        model = _unwrap(ann)
+    return model if isinstance(model, type) and issubclass(model, BaseModel) else None
+
+
+def _unwrap(ann):
+    import typing
+    for _ in range(4):
+        args = typing.get_args(ann)
+        origin = typing.get_origin(ann)
+        if isinstance(ann, type) and issubclass(ann, BaseModel):
+            return ann
+        if origin in (Union, list, Optional) or args:
+            cands = [a for a in args if a is not type(None)]
+            ann = next((a for a in cands if isinstance(a, type) and issubclass(a, BaseModel)), cands[0] if cands else None)
+        else:
+            return ann
+    return ann
+
+
+def _first_error(err: ValidationError) -> tuple[str, str]:
+    e = err.errors()[0]
+    loc = tuple(e["loc"])
+    # strip pydantic's union/validator tags such as 'function-after[...]'
+    loc = tuple(p for p in loc if not (isinstance(p, str) and ("[" in p and "]" in p and "function" in p)))
+    kind = e["type"]
+    if kind == "extra_forbidden":
+        key = loc[-1]
+        owner = _model_at(loc[:-1])
+        hint = ""
+        if owner is not None:
+            close = difflib.get_close_matches(str(key), _valid_keys(owner), n=1, cutoff=0.5)
+            hint = f" (did you mean '{close[0]}'?)" if close else f" (valid keys: {', '.join(_valid_keys(owner))})"
+        return _loc(loc), f"unknown key '{key}'{hint}"
+    if kind == "missing":
+        return _loc(loc), "required key is missing"
+    msg = e["msg"]
+    if msg.startswith("Value error, "):
+        msg = msg[len("Value error, "):]
+    if kind in ("finite_number",):
+        msg = "must be a finite number (no NaN or inf)"
+    if "input" in e and kind not in ("missing",) and not isinstance(e["input"], (dict, list)):
+        msg += f" (got {e['input']!r})"
+    return _loc(loc), msg
+
+
+def parse(data: Any, source_text: str = "", source_path: str = "<config>") -> Config:
+    """Validate a mapping (already parsed YAML); raise :class:`ConfigError` with one line."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source_path}: the config must be a YAML mapping of keys, got {type(data).__name__}")
+    try:
+        cfg = Config.model_validate({**data, "source_text": source_text, "source_path": source_path})
+    except ValidationError as err:
+        where, why = _first_error(err)
+        raise ConfigError(f"{source_path}: {where or '(top level)'}: {why}") from None
+    errs = _physics(cfg)
+    if errs:
+        where, why = errs[0]
+        raise ConfigError(f"{source_path}: {where}: {why}")
+    return cfg
+
+
+def loads(text: str, source_path: str = "<config>") -> Config:
+    """Parse YAML text (safe loader only) and validate it."""
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "YAML"
+        problem = getattr(err, "problem", None) or str(err).splitlines()[0]
+        raise ConfigError(f"{source_path}: {where}: malformed YAML ({problem})") from None
+    return parse(data, source_text=text, source_path=source_path)
+
+
+def load(path: str | Path) -> Config:
+    """Read and validate a config file."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such config file") from None
+    except (IsADirectoryError, PermissionError, UnicodeDecodeError) as err:
+        raise ConfigError(f"{path}: cannot read the config ({type(err).__name__})") from None
+    return loads(text, source_path=str(path))
+
+
+def with_overrides(cfg: Config, overrides: dict[str, Any]) -> Config:
+    """A copy of ``cfg`` with dotted keys replaced (``{"plant.noise.std": 0.03}``), validated again.
+
+    Used by ``hwid batch --sweep``; the resulting text (and hash) records the overrides.
+    """
+    data = yaml.safe_load(cfg.source_text) if cfg.source_text else cfg.model_dump()
+    for key, value in overrides.items():
+        node = data
+        parts = key.split(".")
+        for part in parts[:-1]:
+            if not isinstance(node, dict) or part not in node:
+                node.setdefault(part, {}) if isinstance(node, dict) else None
+            node = node[part]
+        node[parts[-1]] = value
+    text = yaml.safe_dump(data, sort_keys=False)
+    return loads(text, source_path=f"{cfg.source_path} [{', '.join(f'{k}={v}' for k, v in overrides.items())}]")

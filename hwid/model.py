@@ -1,0 +1,128 @@
+"""The Hammerstein-Wiener model (eqs. 3a-c) and its normalised form (eqs. 4a-c), as plain data.
+
+Normalisation. The triple (F, G, h) is only identifiable up to ``(F/k1, G/k2, h(k1 k2 .))``
+(Section 3). hwid reports the unique representative with
+
+* ``G(0) = 1`` (eq. 4b), and
+* an ascending branch of unit slope: ``F_bar = F / k`` with ``k = S^a`` for a Backlash (eq. 4a),
+  and ``k = 1/S^a`` for a Backlash-Inverse (whose ascending branch ``u/S^a + d^+`` then becomes
+  ``u + S^a d^+``), and
+* ``h_bar(w) = h(G(0) k w)`` (eq. 4c).
+
+So a normalised Backlash has ``slope_up = 1``, ``slope_down = S^d/S^a`` and unchanged ``d^+, d^-``;
+a normalised Backlash-Inverse has ``slope_up = 1``, ``slope_down = S^d/S^a``, ``d^+ -> S^a d^+`` and
+``d^- -> S^a d^-``. In both cases the steady-state output is ``h_bar(F_bar[U])`` (eq. 5).
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from hwid.blocks import backlash as bl
+from hwid.blocks.linear import LinearBlock
+from hwid.blocks.static import PiecewiseH, PolynomialH
+
+
+@dataclass(frozen=True)
+class InputNonlinearity:
+    """F in {B, B_inv} with its four parameters (Fig. 2 / Fig. 5)."""
+
+    type: Literal["backlash", "backlash_inverse"]
+    slope_up: float
+    slope_down: float
+    d_plus: float
+    d_minus: float
+
+    @property
+    def scale(self) -> float:
+        """k of eq. (4a): ``F_bar = F / k``."""
+        return self.slope_up if self.type == "backlash" else 1.0 / self.slope_up
+
+    def normalised(self) -> "InputNonlinearity":
+        """``F / k`` (eq. 4a, extended to the Backlash-Inverse as in the module docstring)."""
+        r = self.slope_down / self.slope_up
+        if self.type == "backlash":
+            return InputNonlinearity(self.type, 1.0, r, self.d_plus, self.d_minus)
+        return InputNonlinearity(self.type, 1.0, r, self.slope_up * self.d_plus, self.slope_up * self.d_minus)
+
+    def apply(self, u, state: float | None = None) -> np.ndarray:
+        """Run the operator on a sampled input (eq. 1 or eq. 2)."""
+        f = bl.backlash if self.type == "backlash" else bl.backlash_inverse
+        return f(u, self.slope_up, self.slope_down, self.d_plus, self.d_minus, state)
+
+    def steady(self, levels, state: float) -> np.ndarray:
+        """Steady-state outputs ``F[U_j]`` along a sequence of constant levels."""
+        f = bl.static_play if self.type == "backlash" else bl.static_direction_map
+        return f(levels, self.slope_up, self.slope_down, self.d_plus, self.d_minus, state)
+
+    def ascending(self, u):
+        """The ascending border / branch as a function of u."""
+        u = np.asarray(u, float)
+        if self.type == "backlash":
+            return self.slope_up * (u - self.d_plus)
+        return u / self.slope_up + self.d_plus
+
+    def descending(self, u):
+        u = np.asarray(u, float)
+        if self.type == "backlash":
+            return self.slope_down * (u - self.d_minus)
+        return u / self.slope_down + self.d_minus
+
+    def precompensator(self, z, kind: str = "auto") -> np.ndarray:
+        """The pre-compensator of Fig. 8 that makes ``F[P[z]] = z`` (Section 5, Lemma 1).
+
+        ``kind='auto'``: the Backlash-Inverse (eq. 2) for a Backlash plant (exact), the border map
+        (:func:`hwid.blocks.backlash.border_map`) for a Backlash-Inverse plant (exact but for one
+        sample per reversal). ``kind='backlash'`` uses the Backlash of eq. (1) for a
+        Backlash-Inverse plant, literally as the paper's Lemma 1 suggests (holds through the gap).
+        """
+        p = (self.slope_up, self.slope_down, self.d_plus, self.d_minus)
+        z = np.asarray(z, float)
+        if self.type == "backlash":
+            return bl.backlash_inverse(z, *p, u0=z[0] / p[0] + p[2])
+        if kind == "backlash":
+            return bl.backlash(z, *p, v0=p[0] * (z[0] - p[2]))
+        return bl.border_map(z, *p, u0=p[0] * (z[0] - p[2]))
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class HWModel:
+    """A complete (F, G, h) model; ``normalised()`` gives the representative of eqs. (4a-c)."""
+
+    input: InputNonlinearity
+    linear: LinearBlock
+    output: PolynomialH | PiecewiseH
+
+    def normalised(self) -> "HWModel":
+        k = self.input.scale * self.linear.dc_gain
+        return HWModel(self.input.normalised(), self.linear.normalised(), self.output.scaled(k))
+
+    def steady_output(self, levels, state: float) -> np.ndarray:
+        """``X_j = h(G(0) F[U_j])`` for a level sequence (eqs. 5, 8)."""
+        return self.output(self.linear.dc_gain * self.input.steady(levels, state))
+
+    def to_dict(self) -> dict:
+        return {"input_nonlinearity": self.input.to_dict(),
+                "linear": {"num": list(self.linear.num), "den": list(self.linear.den), "delay": self.linear.delay},
+                "output_nonlinearity": self.output.to_dict()}
+
+
+def from_config(plant_cfg) -> HWModel:
+    """The plant's (un-normalised) model from ``cfg.plant`` (a hammerstein_wiener plant)."""
+    f = plant_cfg.input_nonlinearity
+    lin = plant_cfg.linear
+    on = plant_cfg.output_nonlinearity
+    if on.polynomial is not None:
+        h = PolynomialH(tuple(float(c) for c in on.polynomial))
+    else:
+        h = PiecewiseH(tuple(float(p.upper) for p in on.pieces[:-1]),
+                       tuple(tuple(float(c) for c in p.polynomial) for p in on.pieces))
+    num = np.trim_zeros(np.asarray(lin.num, float), "f")
+    den = np.trim_zeros(np.asarray(lin.den, float), "f")
+    return HWModel(InputNonlinearity(f.type, f.slope_up, f.slope_down, f.d_plus, f.d_minus),
+                   LinearBlock(tuple(num.tolist()), tuple(den.tolist()), float(lin.delay)), h)

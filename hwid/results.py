@@ -1,0 +1,190 @@
+"""HDF5 results: one writer, atomic files, provenance in attributes.
+
+Every file is written to ``NAME.tmp`` in the same directory and moved into place with
+``os.replace`` only once complete, so an interrupted run leaves the old file or the new one, never a
+broken one. Root attributes of every file:
+
+=================  ===========================================================
+``hwid_kind``      ``simulation`` | ``nonlinear`` | ``linear`` | ``batch`` | ...
+``hwid_format``    integer layout version (:data:`FORMAT`)
+``hwid_version``   package version that wrote it
+``config``         the config's YAML text; ``config_sha256`` its SHA-256
+``seed``, ``dt``   the run's root seed and sample time
+``argv``           the command line; ``created`` ISO time (UTC)
+=================  ===========================================================
+"""
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Any, Iterator
+
+import h5py
+import numpy as np
+
+from hwid import HwidError, __version__
+
+FORMAT = 1
+
+
+class ResultsError(HwidError):
+    """A results file that is missing, broken, foreign, of the wrong kind or from another config."""
+
+
+@contextlib.contextmanager
+def atomic_h5(path: str | Path, mode: str = "w") -> Iterator[h5py.File]:
+    """Open ``path.tmp`` for writing and rename it to ``path`` when the block completes."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    if mode == "a" and path.exists():
+        import shutil
+        shutil.copyfile(path, tmp)
+    try:
+        with h5py.File(tmp, "a" if mode == "a" else "w") as f:
+            yield f
+            f.flush()
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        raise
+
+
+def write_provenance(f: h5py.File, kind: str, cfg=None, seed: Any = None, extra: dict | None = None) -> None:
+    f.attrs["hwid_kind"] = kind
+    f.attrs["hwid_format"] = FORMAT
+    f.attrs["hwid_version"] = __version__
+    f.attrs["argv"] = " ".join(sys.argv)
+    f.attrs["created"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    if cfg is not None:
+        f.attrs["config"] = cfg.source_text
+        f.attrs["config_sha256"] = cfg.sha256
+        f.attrs["config_name"] = cfg.name
+        f.attrs["dt"] = cfg.sampling.dt
+        f.attrs["seed"] = cfg.seed if seed is None else seed
+    for k, v in (extra or {}).items():
+        f.attrs[k] = v
+
+
+def write_dict(group: h5py.Group, data: dict) -> None:
+    """Store a plain-data dict: arrays and lists of numbers as datasets, scalars and strings as
+    attributes, nested dicts as subgroups, anything else as a JSON attribute."""
+    for key, val in data.items():
+        key = str(key)
+        if isinstance(val, dict):
+            write_dict(group.require_group(key), val)
+        elif isinstance(val, np.ndarray) or (isinstance(val, (list, tuple)) and val and
+                                              all(isinstance(x, (int, float, np.number)) and not isinstance(x, bool) for x in np.ravel(np.asarray(val, dtype=object)))):
+            arr = np.asarray(val, dtype=float) if not isinstance(val, np.ndarray) else val
+            if key in group:
+                del group[key]
+            group.create_dataset(key, data=arr, compression="gzip" if arr.size > 4096 else None)
+        elif val is None:
+            group.attrs[key] = "null"
+            group.attrs[key + "__json"] = True
+        elif isinstance(val, (str, int, float, bool, np.number, np.bool_)):
+            group.attrs[key] = val
+        else:
+            group.attrs[key] = json.dumps(val)
+            group.attrs[key + "__json"] = True
+
+
+def read_dict(group: h5py.Group) -> dict:
+    """Inverse of :func:`write_dict`."""
+    out: dict = {}
+    for key, val in group.attrs.items():
+        if key.endswith("__json"):
+            continue
+        if group.attrs.get(key + "__json", False):
+            out[key] = json.loads(val)
+        elif isinstance(val, np.generic):
+            out[key] = val.item()
+        else:
+            out[key] = val
+    for key, item in group.items():
+        out[key] = read_dict(item) if isinstance(item, h5py.Group) else item[()]
+    return out
+
+
+def write_records(group: h5py.Group, records) -> None:
+    """One subgroup per experiment: ``t, u, y`` and, for simulated plants, ``v, w, x`` (ground truth)."""
+    for r in records:
+        g = group.require_group(r.name)
+        for key in ("u", "y", "v", "w", "x", "z"):
+            arr = getattr(r, key)
+            if arr is not None:
+                if key in g:
+                    del g[key]
+                ds = g.create_dataset(key, data=np.asarray(arr, float), compression="gzip", shuffle=True)
+                if key in ("v", "w", "x"):
+                    ds.attrs["ground_truth"] = True
+        g.attrs["dt"] = r.dt
+        g.attrs["n"] = r.u.size
+        for k, v in r.attrs.items():
+            g.attrs[k] = v if isinstance(v, (str, int, float, bool)) else json.dumps(v)
+
+
+def read_records(group: h5py.Group) -> dict:
+    from hwid.plant import Record
+    out = {}
+    for name, g in group.items():
+        kw = {k: (g[k][()] if k in g else None) for k in ("u", "y", "v", "w", "x", "z")}
+        attrs = {k: v for k, v in g.attrs.items() if k not in ("dt", "n")}
+        out[name] = Record(name, float(g.attrs["dt"]), attrs=attrs, **kw)
+    return out
+
+
+def open_results(path: str | Path, kind: str | tuple[str, ...], cfg=None) -> h5py.File:
+    """Open an hwid results file for reading and check it is what the caller expects.
+
+    Raises :class:`ResultsError` (one line) when it is missing, not HDF5, not written by hwid, of a
+    newer layout, of another kind, or (when ``cfg`` is given) written for a different config."""
+    path = Path(path)
+    kinds = (kind,) if isinstance(kind, str) else kind
+    if not path.exists():
+        raise ResultsError(f"{path}: no such file")
+    try:
+        f = h5py.File(path, "r")
+    except OSError:
+        raise ResultsError(f"{path}: not a readable HDF5 file (truncated or foreign)") from None
+    try:
+        got = f.attrs.get("hwid_kind")
+        if got is None:
+            raise ResultsError(f"{path}: not written by hwid (no hwid_kind attribute)")
+        got = got.decode() if isinstance(got, bytes) else str(got)
+        fmt = int(f.attrs.get("hwid_format", -1))
+        if fmt != FORMAT:
+            raise ResultsError(f"{path}: written with results format {fmt}, this hwid reads format {FORMAT}")
+        if got not in kinds:
+            raise ResultsError(f"{path}: is a '{got}' file, expected {' or '.join(repr(k) for k in kinds)}")
+        if cfg is not None and f.attrs.get("config_sha256") not in (None, cfg.sha256):
+            raise ResultsError(f"{path}: was written for a different config than {cfg.source_path} "
+                               f"(config hash differs); rerun with the matching config")
+    except ResultsError:
+        f.close()
+        raise
+    return f
+
+
+def write_json(path: str | Path, data: dict) -> None:
+    """Atomic JSON write (``--json FILE``)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2, default=_json_default) + "\n")
+    os.replace(tmp, path)
+
+
+def _json_default(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.generic):
+        return o.item()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
