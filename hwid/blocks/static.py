@@ -4,6 +4,32 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def _horner(w, c):
+    # blocked so the inner loop runs over samples (SIMD) while the block stays in L1 cache
+    n = w.shape[0]
+    m = c.shape[0]
+    out = np.empty(n)
+    B = 2048
+    for s in range(0, n, B):
+        e = min(s + B, n)
+        for k in range(s, e):
+            out[k] = c[m - 1]
+        for i in range(m - 2, -1, -1):
+            ci = c[i]
+            for k in range(s, e):
+                out[k] = out[k] * w[k] + ci
+    return out
+
+
+def polyval(w, coefficients) -> np.ndarray:
+    """``sum_i c_i w^i`` (ascending powers) by Horner's rule, any array shape."""
+    w = np.asarray(w, dtype=float)
+    c = np.ascontiguousarray(coefficients, dtype=float)
+    return _horner(np.ascontiguousarray(w.ravel()), c).reshape(w.shape)
 
 
 @dataclass(frozen=True)
@@ -13,7 +39,7 @@ class PolynomialH:
     coefficients: tuple[float, ...]
 
     def __call__(self, w):
-        return np.polynomial.polynomial.polyval(np.asarray(w, dtype=float), self.coefficients)
+        return polyval(w, self.coefficients)
 
     def scaled(self, k: float) -> "PolynomialH":
         """``w -> h(k w)``, as in eq. (4c)."""
@@ -39,7 +65,7 @@ class PiecewiseH:
         for i, c in enumerate(self.pieces):
             m = idx == i
             if np.any(m):
-                out[m] = np.polynomial.polynomial.polyval(w[m], c)
+                out[m] = polyval(w[m], c)
         return out
 
     def scaled(self, k: float) -> "PiecewiseH":
