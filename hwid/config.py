@@ -8,9 +8,11 @@ line: ``FILE: key.path: reason``. Every key is documented in ``configs/README.md
 """
 from __future__ import annotations
 
+import contextlib
 import difflib
 import hashlib
 import math
+import re
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union
 
@@ -159,6 +161,12 @@ class ProtocolsCfg(_Strict):
     staircase: Optional[StaircaseCfg] = None
     sine: Optional[SineCfg] = None
 
+    @model_validator(mode="after")
+    def _some(self):
+        if self.staircase is None and self.sine is None:
+            raise ValueError("give at least one of 'staircase' or 'sine'")
+        return self
+
 
 class NonlinearIdCfg(_Strict):
     method: Literal["nls", "paper"] = "nls"
@@ -180,8 +188,8 @@ class IdentificationCfg(_Strict):
 
 
 class Config(_Strict):
-    name: Annotated[str, Field(min_length=1, pattern=r"^[A-Za-z0-9_.+-]+$")]
-    seed: Annotated[int, Field(ge=0)] = 0
+    name: Annotated[str, Field(min_length=1, max_length=100, pattern=r"^[A-Za-z0-9_.+-]+$")]
+    seed: Annotated[int, Field(ge=0, lt=2**63)] = 0   # stored as an int64 HDF5 attribute
     sampling: Sampling
     plant: PlantCfg
     protocols: ProtocolsCfg
@@ -197,6 +205,9 @@ class Config(_Strict):
 
 
 # ---------------------------------------------------------------- physics checks (need the whole config)
+
+MAX_SAMPLES = 10**8  # per experiment: 0.8 GB per stored signal
+
 
 def _physics(cfg: Config) -> list[tuple[str, str]]:
     errs: list[tuple[str, str]] = []
@@ -240,6 +251,17 @@ def _physics(cfg: Config) -> list[tuple[str, str]]:
                              f"{w} rad/s leaves fewer than 8 samples per period at dt = {dt} s"))
     if p.kind == "hammerstein_wiener" and p.linear.delay > 0 and p.linear.delay > 1e6 * dt:
         errs.append(("plant.linear.delay", "delay is more than 10^6 samples"))
+    # experiment lengths (samples) that fit in memory: protocols.staircase / protocols.sine
+    if st is not None:
+        n = (len(st.levels_up) + 2) * (st.hold / dt)
+        if n > MAX_SAMPLES:
+            errs.append(("protocols.staircase.hold", f"the staircase would last {n:.3g} samples of dt = {dt} s, "
+                                                     f"more than the limit of {MAX_SAMPLES:.0e}"))
+    if sn is not None:
+        n = (sn.periods + sn.lead_in_periods) * 2 * math.pi / min(sn.frequencies) / dt
+        if n > MAX_SAMPLES:
+            errs.append(("protocols.sine.periods", f"the slowest sine would last {n:.3g} samples of dt = {dt} s, "
+                                                   f"more than the limit of {MAX_SAMPLES:.0e}"))
     return errs
 
 
@@ -304,10 +326,32 @@ def _first_error(err: ValidationError) -> tuple[str, str]:
     msg = e["msg"]
     if msg.startswith("Value error, "):
         msg = msg[len("Value error, "):]
+    ctx = e.get("ctx") or {}
     if kind in ("finite_number",):
         msg = "must be a finite number (no NaN or inf)"
-    if "input" in e and kind not in ("missing",) and not isinstance(e["input"], (dict, list)):
-        msg += f" (got {e['input']!r})"
+    elif kind in ("dict_type", "model_type", "model_attributes_type"):
+        msg = "must be a mapping of keys"
+    elif kind == "too_short":
+        msg = f"must have at least {ctx.get('min_length')} item(s), got {ctx.get('actual_length')}"
+    elif kind == "too_long":
+        msg = f"must have at most {ctx.get('max_length')} item(s), got {ctx.get('actual_length')}"
+    elif kind == "string_too_long":
+        msg = f"must have at most {ctx.get('max_length')} characters"
+    elif kind == "string_too_short":
+        msg = "must not be empty"
+    elif kind == "string_pattern_mismatch":
+        msg = "may contain only letters, digits and _ . + -" if loc == ("name",) else \
+              f"must look like {'package.module:function' if loc[-1:] == ('callable',) else ctx.get('pattern')}"
+    elif msg.startswith("Input should be "):
+        msg = "must be " + msg[len("Input should be "):]
+    got = e.get("input")
+    if kind in ("float_type", "int_type") and isinstance(got, str):
+        with contextlib.suppress(ValueError):
+            float(got)
+            msg += " (a quoted number is a string in YAML)"
+    if "input" in e and kind != "missing" and (kind.endswith("_type") or not isinstance(got, (dict, list))):
+        shown = repr(got) if not isinstance(got, (dict, list)) else f"a {'mapping' if isinstance(got, dict) else 'list'}"
+        msg += f" (got {shown if len(shown) <= 60 else shown[:57] + '...'})"
     return _loc(loc), msg
 
 
@@ -327,10 +371,45 @@ def parse(data: Any, source_text: str = "", source_path: str = "<config>") -> Co
     return cfg
 
 
+class _SafeLoader(yaml.SafeLoader):
+    """PyYAML's safe loader (plain data only: no tags that build objects), made stricter:
+
+    * a key given twice in one mapping is an error (PyYAML silently keeps the last one);
+    * ``1e-3`` and ``1E6`` are numbers, as in YAML 1.2 (PyYAML's YAML 1.1 rules read them as
+      strings, so ``dt: 1e-3`` would be rejected as "not a number")."""
+
+
+_SafeLoader.yaml_implicit_resolvers = {k: list(v) for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+_SafeLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+)$"""),
+    list("-+0123456789"))
+
+
+def _no_duplicates(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bool = False):
+    seen: dict = {}
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        try:
+            hash(key)
+        except TypeError:
+            break  # let the default constructor report the unhashable key
+        if key in seen:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"key '{key}' is given twice (first on line {seen[key] + 1})", key_node.start_mark)
+        seen[key] = key_node.start_mark.line
+    return loader.construct_mapping(node, deep=deep)
+
+
+_SafeLoader.add_constructor("tag:yaml.org,2002:map", _no_duplicates)
+
+
 def loads(text: str, source_path: str = "<config>") -> Config:
     """Parse YAML text (safe loader only) and validate it."""
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_SafeLoader)  # noqa: S506 - a SafeLoader subclass
+    except RecursionError:
+        raise ConfigError(f"{source_path}: YAML: nested too deeply to be a config") from None
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "YAML"
