@@ -30,7 +30,10 @@ def _root(version: bool = typer.Option(False, "--version", callback=_version, is
 def _out_dir(out: Path) -> Path:
     if out.exists() and not out.is_dir():
         raise HwidError(f"--out {out}: exists and is not a directory")
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise HwidError(f"--out {out}: cannot create the directory ({err.strerror or type(err).__name__})") from None
     return out
 
 
@@ -39,6 +42,9 @@ def check(config: Path = typer.Argument(..., help="Config YAML to validate.")):
     """Validate a config and exit (0 if it is usable, 2 with one line if not)."""
     from hwid import config as C
     cfg = C.load(config)
+    if cfg.plant.kind == "external":
+        from hwid.plant import load_external
+        load_external(cfg)   # imports the named callable (only that) and checks its signature
     typer.echo(f"{config}: OK ({cfg.name}, plant {cfg.plant.kind}, config sha256 {cfg.sha256[:12]})")
 
 
@@ -53,12 +59,68 @@ def simulate(config: Path = typer.Argument(..., help="Config YAML."),
     typer.echo(f"wrote {path}")
 
 
+def _one_line(msg: str) -> str:
+    """Messages from rigs and libraries may span lines; the CLI prints one."""
+    return " ".join(msg.split())
+
+
+def _click_errors() -> tuple[type, ...]:
+    """Click's usage-error base class: typer >= 0.16 vendors click as ``typer._click``."""
+    types = []
+    for mod in ("click.exceptions", "typer._click.exceptions"):
+        try:
+            types.append(__import__(mod, fromlist=["ClickException"]).ClickException)
+        except (ImportError, AttributeError):
+            pass
+    return tuple(types)
+
+
+@app.command("run")
+def run_all(config: Path = typer.Argument(..., help="Config YAML."),
+            out: Path = typer.Option(..., "--out", help="Output directory."),
+            no_report: bool = typer.Option(False, "--no-report", help="Skip the HTML report.")):
+    """The whole job: staircases, stage 1, stage 2 behind the estimated pre-compensator, the report."""
+    import time
+    from hwid import config as C
+    from hwid.pipeline import run
+    t0 = time.perf_counter()
+    cfg = C.load(config)
+    run(cfg, _out_dir(out), report=not no_report, echo=typer.echo)
+    typer.echo(f"done in {time.perf_counter() - t0:.1f} s: {out}")
+
+
+@app.command()
+def batch(config: Path = typer.Argument(..., help="Config YAML (a simulated plant)."),
+          runs: int = typer.Option(..., "--runs", help="Monte Carlo runs per sweep point."),
+          out: Path = typer.Option(..., "--out", help="Output directory (batch.h5, batch.jsonl)."),
+          jobs: int = typer.Option(1, "--jobs", "-j", help="Local worker processes."),
+          sweep: list[str] = typer.Option([], "--sweep", help="KEY=V1,V2,... (repeatable; crossed)."),
+          scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://host:port.")):
+    """Monte Carlo over noise realisations, optionally crossed with config sweeps; resumable."""
+    from hwid import config as C
+    from hwid.batch import load_summary, parse_sweep, run_batch
+    cfg = C.load(config)
+    if jobs < 1:
+        raise HwidError("--jobs must be at least 1")
+    path = run_batch(cfg, runs, _out_dir(out), [parse_sweep(s) for s in sweep], jobs=jobs, scheduler=scheduler)
+    summ = load_summary(path)
+    for p in summ["points"]:
+        typer.echo(f"{p['overrides'] or 'base config'}: {p['n_runs']} runs, {p['n_errors']} failed")
+        for name, s in p["stats"].items():
+            if name.startswith("h_c"):
+                continue
+            cov = f" coverage {s['coverage']:.3f}" if "coverage" in s else ""
+            eff = f" efficiency {s['efficiency']:.2f}" if "efficiency" in s else ""
+            typer.echo(f"  {name:>14}: bias {s['bias']:+.2e} std {s['std']:.2e} rmse {s['rmse']:.2e}{cov}{eff}")
+    typer.echo(f"wrote {path}")
+
+
 def main(argv: Optional[list[str]] = None) -> None:
     """Entry point: run the app, map user errors to one line and exit code 2."""
     try:
         app(args=argv, standalone_mode=False)
     except HwidError as err:
-        sys.stderr.write(f"hwid: error: {err}\n")
+        sys.stderr.write(f"hwid: error: {_one_line(str(err))}\n")
         sys.exit(2)
     except typer.Exit as e:
         sys.exit(e.exit_code)
@@ -69,9 +131,9 @@ def main(argv: Optional[list[str]] = None) -> None:
         sys.stderr.write("hwid: interrupted (results written so far are kept)\n")
         sys.exit(130)
     except Exception as err:  # click usage errors carry their own exit code
-        import click
-        if isinstance(err, click.ClickException):
-            err.show()
+        if isinstance(err, _click_errors()):
+            where = getattr(getattr(err, "ctx", None), "command_path", None) or "hwid"
+            sys.stderr.write(f"hwid: error: {_one_line(err.format_message())} (see '{where} --help')\n")
             sys.exit(2 if err.exit_code in (1, 2) else err.exit_code)
         raise
     sys.exit(0)

@@ -92,6 +92,10 @@ class SimulatedPlant:
         x = self.model.output(w)
         y = x + noise(experiment_rng(self.seed_seq, name), u.size, self.noise_std, self.noise_ar)
         self.calls += 1
+        if not np.all(np.isfinite(y)):
+            raise HwidError(f"simulating experiment '{name}' gave NaN or inf (first at sample "
+                            f"{int(np.argmin(np.isfinite(y)))}): the plant's coefficients or the protocol's "
+                            f"levels are too large for floating point")
         return Record(name, self.dt, u, y, v, w, x, None if z is None else np.asarray(z, float))
 
 
@@ -100,19 +104,28 @@ def load_callable(spec: str) -> Callable:
     mod_name, _, fn_name = spec.partition(":")
     try:
         mod = importlib.import_module(mod_name)
-    except Exception as err:  # noqa: BLE001 - any import failure is the user's to fix
-        raise HwidError(f"plant.callable: cannot import module '{mod_name}' ({type(err).__name__}: {err})") from None
+    except (Exception, SystemExit) as err:  # noqa: BLE001 - any import failure is the user's to fix
+        raise HwidError(f"cannot import module '{mod_name}' ({type(err).__name__}: {err})") from None
     fn = getattr(mod, fn_name, None)
     if fn is None or not callable(fn):
-        raise HwidError(f"plant.callable: module '{mod_name}' has no function '{fn_name}'")
+        raise HwidError(f"module '{mod_name}' has no function '{fn_name}'")
     try:
         sig = inspect.signature(fn)
         sig.bind(np.zeros(1), 0.01)
     except TypeError:
-        raise HwidError(f"plant.callable: '{spec}' must accept (u: numpy.ndarray, dt: float)") from None
+        raise HwidError(f"'{spec}' must accept (u: numpy.ndarray, dt: float), "
+                        f"its signature is {fn_name}{sig}") from None
     except ValueError:
         pass  # builtins without a signature: trust them
     return fn
+
+
+def load_external(cfg) -> Callable:
+    """The callable of an external plant config; errors name the config file and key."""
+    try:
+        return load_callable(cfg.plant.callable)
+    except HwidError as err:
+        raise HwidError(f"{cfg.source_path}: plant.callable: {err}") from None
 
 
 class RigJournal:
@@ -127,7 +140,9 @@ class RigJournal:
     @staticmethod
     def key(name: str, u: np.ndarray, dt: float) -> str:
         h = hashlib.sha256(np.ascontiguousarray(u, dtype=float).tobytes() + repr(float(dt)).encode()).hexdigest()[:16]
-        safe = "".join(c if c.isalnum() or c in "_-." else "_" for c in name)
+        # only [A-Za-z0-9_.-], at most 80 characters, plus the hash: always one plain file name
+        # inside the journal directory, whatever the experiment's name
+        safe = "".join(c if (c.isascii() and c.isalnum()) or c in "_-." else "_" for c in name)[:80]
         return f"{safe}-{h}"
 
     def get(self, name: str, u: np.ndarray, dt: float) -> Optional[np.ndarray]:
@@ -137,14 +152,18 @@ class RigJournal:
         try:
             with np.load(p) as f:
                 if f["u"].shape == u.shape and np.array_equal(f["u"], u):
-                    return f["y"].copy()
+                    y = np.asarray(f["y"], dtype=float)
+                    if y.shape == u.shape and np.all(np.isfinite(y)):
+                        return y.copy()
         except Exception:  # noqa: BLE001 - a broken journal entry is ignored and redone
             return None
         return None
 
-    def put(self, name: str, u: np.ndarray, y: np.ndarray, dt: float) -> Path:
-        self.dir.mkdir(parents=True, exist_ok=True)
-        p = self.dir / (self.key(name, u, dt) + ".npz")
+    def put(self, name: str, u: np.ndarray, y: np.ndarray, dt: float, rejected: bool = False) -> Path:
+        """Record one call; ``rejected=True`` files it under ``rejected/`` (kept, never reused)."""
+        d = self.dir / "rejected" if rejected else self.dir
+        d.mkdir(parents=True, exist_ok=True)
+        p = d / (self.key(name, u, dt) + ".npz")
         tmp = p.with_suffix(".npz.tmp")
         with open(tmp, "wb") as fh:
             np.savez(fh, u=u, y=y, dt=dt, name=name)
@@ -152,6 +171,10 @@ class RigJournal:
             os.fsync(fh.fileno())
         os.replace(tmp, p)
         return p
+
+
+class RigError(HwidError):
+    """An external plant that failed, hung or returned something unusable; names the experiment."""
 
 
 class ExternalPlant:
@@ -178,14 +201,14 @@ class ExternalPlant:
             try:
                 box["y"] = self.fn(u.copy(), self.dt)
             except BaseException as err:  # noqa: BLE001 - re-raised in the caller's thread
-                box["err"] = err
+                box["err"] = err if isinstance(err, Exception) else RuntimeError(f"{type(err).__name__}({err})")
 
         th = threading.Thread(target=target, daemon=True, name=f"rig-{name}")
         th.start()
         th.join(self.timeout)
         if th.is_alive():
-            raise HwidError(f"external plant '{self.spec}' call for experiment '{name}' did not return "
-                            f"within {self.timeout:g} s (plant.timeout)")
+            raise RigError(f"external plant '{self.spec}' call for experiment '{name}' did not return "
+                           f"within {self.timeout:g} s (plant.timeout)")
         if "err" in box:
             raise box["err"]
         return box.get("y")
@@ -198,23 +221,28 @@ class ExternalPlant:
         else:
             try:
                 y = self._call(name, u)
-            except HwidError:
+            except RigError:
                 raise
-            except Exception as err:  # noqa: BLE001 - the rig's failure, reported in one line
-                raise HwidError(f"external plant '{self.spec}' failed on experiment '{name}': "
-                                f"{type(err).__name__}: {err}") from None
+            except (Exception, SystemExit) as err:  # noqa: BLE001 - the rig's failure, in one line
+                raise RigError(f"external plant '{self.spec}' failed on experiment '{name}': "
+                               f"{type(err).__name__}: {err}") from None
             self.calls += 1
             try:
                 y = np.asarray(y, dtype=float).reshape(-1)
-            except (TypeError, ValueError):
-                raise HwidError(f"external plant '{self.spec}' returned something that is not an array of "
-                                f"numbers for experiment '{name}'") from None
+            except Exception:  # noqa: BLE001 - anything that is not an array of numbers
+                raise RigError(f"external plant '{self.spec}' returned something that is not an array of "
+                               f"numbers for experiment '{name}' ({type(y).__name__})") from None
+            problem = None
             if y.shape != u.shape:
-                raise HwidError(f"external plant '{self.spec}' returned {y.size} samples for experiment "
-                                f"'{name}', expected {u.size}")
-            if not np.all(np.isfinite(y)):
-                raise HwidError(f"external plant '{self.spec}' returned NaN or inf for experiment '{name}' "
-                                f"(first at sample {int(np.argmin(np.isfinite(y)))})")
+                problem = f"returned {y.size} samples for experiment '{name}', expected {u.size}"
+            elif not np.all(np.isfinite(y)):
+                problem = (f"returned NaN or inf for experiment '{name}' "
+                           f"(first at sample {int(np.argmin(np.isfinite(y)))})")
+            if problem:
+                kept = ""
+                if self.journal:   # rig time is not thrown away: kept for inspection, never reused
+                    kept = f"; the output is kept in {self.journal.put(name, u, y, self.dt, rejected=True)}"
+                raise RigError(f"external plant '{self.spec}' {problem}{kept}")
             if self.journal:
                 self.journal.put(name, u, y, self.dt)
         return Record(name, self.dt, u, y, z=None if z is None else np.asarray(z, float),
@@ -226,7 +254,7 @@ def make_plant(cfg, seed: np.random.SeedSequence | int | None = None, journal_di
     p = cfg.plant
     if p.kind == "external":
         return ExternalPlant(p.callable, cfg.sampling.dt, p.timeout,
-                             RigJournal(journal_dir) if journal_dir is not None else None)
+                             RigJournal(journal_dir) if journal_dir is not None else None, fn=load_external(cfg))
     seed = cfg.seed if seed is None else seed
     return SimulatedPlant(from_config(p), cfg.sampling.dt, p.noise.std, p.noise.ar, seed,
                           p.input_nonlinearity.initial_state)

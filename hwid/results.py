@@ -51,10 +51,21 @@ def atomic_h5(path: str | Path, mode: str = "w") -> Iterator[h5py.File]:
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, path)
+        _fsync_dir(path.parent)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
         raise
+
+
+def _fsync_dir(directory: Path) -> None:
+    """Make the rename itself durable (POSIX); harmless where directories cannot be opened."""
+    with contextlib.suppress(OSError):
+        fd = os.open(directory, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
 
 
 def write_provenance(f: h5py.File, kind: str, cfg=None, seed: Any = None, extra: dict | None = None) -> None:
@@ -132,12 +143,22 @@ def write_records(group: h5py.Group, records) -> None:
 
 
 def read_records(group: h5py.Group) -> dict:
+    """Inverse of :func:`write_records`; a damaged group raises :class:`ResultsError`."""
     from hwid.plant import Record
     out = {}
-    for name, g in group.items():
-        kw = {k: (g[k][()] if k in g else None) for k in ("u", "y", "v", "w", "x", "z")}
-        attrs = {k: v for k, v in g.attrs.items() if k not in ("dt", "n")}
-        out[name] = Record(name, float(g.attrs["dt"]), attrs=attrs, **kw)
+    where = f"{group.file.filename}:{group.name}"
+    try:
+        for name, g in group.items():
+            where = f"{group.file.filename}:{g.name}"
+            kw = {k: (np.asarray(g[k][()], dtype=float) if k in g else None) for k in ("u", "y", "v", "w", "x", "z")}
+            attrs = {k: v for k, v in g.attrs.items() if k not in ("dt", "n")}
+            out[name] = Record(name, float(g.attrs["dt"]), attrs=attrs, **kw)
+            if out[name].u is None or out[name].y is None or out[name].u.shape != out[name].y.shape:
+                raise ResultsError(f"{where}: experiment without matching 'u' and 'y' datasets")
+    except ResultsError:
+        raise
+    except (OSError, KeyError, ValueError, TypeError, RuntimeError, AttributeError) as err:
+        raise ResultsError(f"{where}: cannot be read ({type(err).__name__}: {err})") from None
     return out
 
 
@@ -150,21 +171,30 @@ def open_results(path: str | Path, kind: str | tuple[str, ...], cfg=None) -> h5p
     kinds = (kind,) if isinstance(kind, str) else kind
     if not path.exists():
         raise ResultsError(f"{path}: no such file")
+    if path.is_dir():
+        raise ResultsError(f"{path}: is a directory, expected an hwid results file")
     try:
         f = h5py.File(path, "r")
-    except OSError:
+    except (OSError, ValueError, RuntimeError):
         raise ResultsError(f"{path}: not a readable HDF5 file (truncated or foreign)") from None
     try:
-        got = f.attrs.get("hwid_kind")
+        try:
+            got = f.attrs.get("hwid_kind")
+            fmt = f.attrs.get("hwid_format", -1)
+            fmt = int(fmt) if np.ndim(fmt) == 0 else -1
+            stored_hash = f.attrs.get("config_sha256")
+        except (OSError, ValueError, TypeError, KeyError, RuntimeError):
+            raise ResultsError(f"{path}: its hwid attributes cannot be read (corrupt file)") from None
         if got is None:
             raise ResultsError(f"{path}: not written by hwid (no hwid_kind attribute)")
-        got = got.decode() if isinstance(got, bytes) else str(got)
-        fmt = int(f.attrs.get("hwid_format", -1))
+        got = got.decode(errors="replace") if isinstance(got, bytes) else str(got)
         if fmt != FORMAT:
             raise ResultsError(f"{path}: written with results format {fmt}, this hwid reads format {FORMAT}")
         if got not in kinds:
             raise ResultsError(f"{path}: is a '{got}' file, expected {' or '.join(repr(k) for k in kinds)}")
-        if cfg is not None and f.attrs.get("config_sha256") not in (None, cfg.sha256):
+        if isinstance(stored_hash, bytes):
+            stored_hash = stored_hash.decode(errors="replace")
+        if cfg is not None and stored_hash not in (None, cfg.sha256):
             raise ResultsError(f"{path}: was written for a different config than {cfg.source_path} "
                                f"(config hash differs); rerun with the matching config")
     except ResultsError:
