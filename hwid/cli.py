@@ -75,6 +75,46 @@ def _click_errors() -> tuple[type, ...]:
     return tuple(types)
 
 
+@app.command("run")
+def run_all(config: Path = typer.Argument(..., help="Config YAML."),
+            out: Path = typer.Option(..., "--out", help="Output directory."),
+            no_report: bool = typer.Option(False, "--no-report", help="Skip the HTML report.")):
+    """The whole job: staircases, stage 1, stage 2 behind the estimated pre-compensator, the report."""
+    import time
+    from hwid import config as C
+    from hwid.pipeline import run
+    t0 = time.perf_counter()
+    cfg = C.load(config)
+    run(cfg, _out_dir(out), report=not no_report, echo=typer.echo)
+    typer.echo(f"done in {time.perf_counter() - t0:.1f} s: {out}")
+
+
+@app.command()
+def batch(config: Path = typer.Argument(..., help="Config YAML (a simulated plant)."),
+          runs: int = typer.Option(..., "--runs", help="Monte Carlo runs per sweep point."),
+          out: Path = typer.Option(..., "--out", help="Output directory (batch.h5, batch.jsonl)."),
+          jobs: int = typer.Option(1, "--jobs", "-j", help="Local worker processes."),
+          sweep: list[str] = typer.Option([], "--sweep", help="KEY=V1,V2,... (repeatable; crossed)."),
+          scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://host:port.")):
+    """Monte Carlo over noise realisations, optionally crossed with config sweeps; resumable."""
+    from hwid import config as C
+    from hwid.batch import load_summary, parse_sweep, run_batch
+    cfg = C.load(config)
+    if jobs < 1:
+        raise HwidError("--jobs must be at least 1")
+    path = run_batch(cfg, runs, _out_dir(out), [parse_sweep(s) for s in sweep], jobs=jobs, scheduler=scheduler)
+    summ = load_summary(path)
+    for p in summ["points"]:
+        typer.echo(f"{p['overrides'] or 'base config'}: {p['n_runs']} runs, {p['n_errors']} failed")
+        for name, s in p["stats"].items():
+            if name.startswith("h_c"):
+                continue
+            cov = f" coverage {s['coverage']:.3f}" if "coverage" in s else ""
+            eff = f" efficiency {s['efficiency']:.2f}" if "efficiency" in s else ""
+            typer.echo(f"  {name:>14}: bias {s['bias']:+.2e} std {s['std']:.2e} rmse {s['rmse']:.2e}{cov}{eff}")
+    typer.echo(f"wrote {path}")
+
+
 def main(argv: Optional[list[str]] = None) -> None:
     """Entry point: run the app, map user errors to one line and exit code 2."""
     try:
