@@ -1,0 +1,354 @@
+"""Bad input gets one clear line, exit code 2, no traceback (issue 7; issue 2's bad-config list).
+
+Every case goes through the real command line (``hwid.cli.main``, a few through the installed
+``hwid`` script in a subprocess) and states the part of the message it must produce. Config
+problems must name the file and the key path: ``hwid: error: FILE: key.path: reason``.
+Results files are checked through :func:`hwid.results.open_results`, which every command that reads
+``simulation.h5`` / ``nonlinear.h5`` / ``linear.h5`` uses.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+import rigs
+from hwid import config as C
+from hwid.cli import main
+from hwid.results import FORMAT, ResultsError, open_results, read_records
+
+D = rigs.DELETE
+HWID = Path(sys.executable).with_name("hwid")
+
+
+def run_cli(argv: list[str], capsys) -> tuple[int, str, str]:
+    """Run ``hwid ARGV`` in-process; any exception other than SystemExit is a traceback escaping."""
+    with pytest.raises(SystemExit) as exc:
+        main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return exc.value.code, out, err
+
+
+def assert_one_line_error(code, err, *fragments):
+    assert code == 2, f"exit code {code}, stderr: {err!r}"
+    assert "Traceback" not in err
+    lines = err.strip("\n").split("\n")
+    assert len(lines) == 1, f"expected one line, got: {err!r}"
+    assert lines[0].startswith("hwid: error: "), lines[0]
+    for frag in fragments:
+        assert frag in lines[0], f"{frag!r} not in {lines[0]!r}"
+    return lines[0]
+
+
+# ---------------------------------------------------------------- configs: (id, config, key path, message part)
+# ``config`` is a dict of changes to tests/rigs.SMALL, or the raw YAML text; key "" = YAML-level.
+
+NESTED = "a: " + "[" * 3000 + "]" * 3000 + "\n"
+
+CONFIG_CASES = [
+    # malformed YAML
+    ("yaml-unclosed-bracket", "name: x\nsampling: {dt: [0.05\n", "line 3", "malformed YAML"),
+    ("yaml-bad-indent", "name: x\n  sampling: 1\n", "line 2", "mapping values are not allowed"),
+    ("yaml-tab", "name: x\n\tsampling: 1\n", "line 2", "cannot start any token"),
+    ("yaml-duplicate-key", "name: a\nname: b\n", "line 2", "key 'name' is given twice (first on line 1)"),
+    ("yaml-empty-file", "", "", "the config must be a YAML mapping of keys, got NoneType"),
+    ("yaml-top-level-list", "- 1\n- 2\n", "", "the config must be a YAML mapping of keys, got list"),
+    ("yaml-python-tag", "name: !!python/object/apply:os.system ['true']\n", "line 1",
+     "could not determine a constructor for the tag"),
+    ("yaml-nested-too-deeply", NESTED, "YAML", "nested too deeply"),
+    ("yaml-undefined-alias", "name: *x\n", "line 1", "undefined alias"),
+    # unknown / misspelt keys, with the nearest valid one
+    ("misspelt-noise-std", {"plant.noise.sdt": 0.01}, "plant.noise.sdt", "unknown key 'sdt' (did you mean 'std'?)"),
+    ("misspelt-top-level", {"smapling": {"dt": 0.05}}, "smapling", "did you mean 'sampling'?"),
+    ("misspelt-num", {"plant.linear.nums": [1.0]}, "plant.linear.nums", "did you mean 'num'?"),
+    ("misspelt-levels", {"protocols.staircase.levels_upp": [1.0, 2.0]}, "protocols.staircase.levels_upp",
+     "did you mean 'levels_up'?"),
+    ("misspelt-slope", {"plant.input_nonlinearity.slope_upp": 1.0}, "plant.input_nonlinearity.slope_upp",
+     "did you mean 'slope_up'?"),
+    ("unknown-key-lists-valid", {"plant.noise.zzzz": 1}, "plant.noise.zzzz", "valid keys: std, ar"),
+    ("missing-required", {"sampling.dt": D}, "sampling.dt", "required key is missing"),
+    ("missing-plant", {"plant": D}, "plant", "required key is missing"),
+    # wrong types
+    ("dt-string", {"sampling.dt": "fast"}, "sampling.dt", "must be a valid number (got 'fast')"),
+    ("dt-quoted-number", "name: x\nsampling: {dt: '0.05'}\n", "sampling.dt", "a quoted number is a string"),
+    ("seed-float", {"seed": 1.5}, "seed", "must be a valid integer (got 1.5)"),
+    ("seed-bool", {"seed": True}, "seed", "must be a valid integer (got True)"),
+    ("name-list", {"name": [1, 2]}, "name", "must be a valid string (got a list)"),
+    ("name-path", {"name": "../../etc/passwd"}, "name", "may contain only letters, digits and _ . + -"),
+    ("noise-not-mapping", {"plant.noise": [0.01]}, "plant.noise", "must be a mapping of keys (got a list)"),
+    ("kind-unknown", {"plant.kind": "wiener"}, "plant.kind", "must be 'hammerstein_wiener' or 'external'"),
+    ("input-type-unknown", {"plant.input_nonlinearity.type": "dead_zone"}, "plant.input_nonlinearity.type",
+     "must be 'backlash' or 'backlash_inverse'"),
+    ("num-entry-string", {"plant.linear.num": ["one"]}, "plant.linear.num[0]", "must be a valid number"),
+    # NaN / inf (written as YAML .nan / .inf by safe_dump)
+    ("dt-nan", {"sampling.dt": float("nan")}, "sampling.dt", "must be a finite number (no NaN or inf)"),
+    ("dt-inf", {"sampling.dt": float("inf")}, "sampling.dt", "must be a finite number (no NaN or inf)"),
+    ("num-nan", {"plant.linear.num": [float("nan")]}, "plant.linear.num[0]", "must be a finite number"),
+    ("d-plus-minus-inf", {"plant.input_nonlinearity.d_plus": float("-inf")}, "plant.input_nonlinearity.d_plus",
+     "must be a finite number"),
+    ("level-inf", {"protocols.staircase.levels_up": [0.0, float("inf")]}, "protocols.staircase.levels_up[1]",
+     "must be a finite number"),
+    # empty lists
+    ("levels-up-empty", {"protocols.staircase.levels_up": []}, "protocols.staircase.levels_up",
+     "must have at least 2 item(s), got 0"),
+    ("frequencies-empty", {"protocols.sine.frequencies": []}, "protocols.sine.frequencies",
+     "must have at least 1 item(s), got 0"),
+    ("den-empty", {"plant.linear.den": []}, "plant.linear.den", "must have at least 1 item(s), got 0"),
+    ("no-protocols", {"protocols": {}}, "protocols", "give at least one of 'staircase' or 'sine'"),
+    # G(s)
+    ("G-unstable", {"plant.linear.den": [1.0, -2.0]}, "plant.linear", "not asymptotically stable (pole at 2)"),
+    ("G-marginal", {"plant.linear.den": [1.0, 0.0, 1.0]}, "plant.linear", "not asymptotically stable"),
+    ("G-integrator", {"plant.linear.den": [1.0, 0.0]}, "plant.linear", "not asymptotically stable (pole at 0)"),
+    ("G-improper", {"plant.linear.num": [1.0, 2.0, 3.0]}, "plant.linear", "G(s) is improper"),
+    ("G0-zero", {"plant.linear.num": [1.0, 0.0]}, "plant.linear", "G(0) must be nonzero"),
+    ("G-den-zero", {"plant.linear.den": [0.0, 0.0]}, "plant.linear", "den is all zeros"),
+    ("G-delay-negative", {"plant.linear.delay": -0.1}, "plant.linear.delay", "must be greater than or equal to 0"),
+    # backlash
+    ("slope-up-zero", {"plant.input_nonlinearity.slope_up": 0.0}, "plant.input_nonlinearity.slope_up",
+     "must be greater than 0 (got 0.0)"),
+    ("slope-down-negative", {"plant.input_nonlinearity.slope_down": -1.0}, "plant.input_nonlinearity.slope_down",
+     "must be greater than 0 (got -1.0)"),
+    ("d-plus-equals-d-minus", {"plant.input_nonlinearity.d_plus": -0.5}, "plant.input_nonlinearity",
+     "d_plus (-0.5) must be greater than d_minus (-0.5)"),
+    ("d-plus-below-d-minus", {"plant.input_nonlinearity.d_plus": -1.0}, "plant.input_nonlinearity",
+     "must be greater than d_minus"),
+    ("borders-cross", {"plant.input_nonlinearity.slope_up": 4.0}, "plant.input_nonlinearity",
+     "the borders cross inside the staircase range at u = 1"),
+    ("borders-cross-inverse", {"plant.input_nonlinearity.type": "backlash_inverse",
+                               "plant.input_nonlinearity.slope_down": 0.2}, "plant.input_nonlinearity",
+     "the borders cross inside the staircase range"),
+    # h
+    ("h-not-through-zero", {"plant.output_nonlinearity.polynomial": [1.0, 1.0]}, "plant.output_nonlinearity",
+     "h(0) must be 0"),
+    ("h-two-forms", {"plant.output_nonlinearity.pieces": [{"polynomial": [0, 1]}]}, "plant.output_nonlinearity",
+     "give exactly one of 'polynomial' or 'pieces'"),
+    # staircase
+    ("levels-up-not-monotone", {"protocols.staircase.levels_up": [-1.0, 0.5, 0.0, 1.0]}, "protocols.staircase",
+     "levels_up must be strictly increasing"),
+    ("levels-down-not-monotone", {"protocols.staircase.levels_down": [1.0, 0.0, 0.5, -1.0]}, "protocols.staircase",
+     "levels_down must be strictly decreasing"),
+    ("too-few-levels-for-degree", {"identification.nonlinear.degree": 6}, "protocols.staircase.levels_up",
+     "5 levels cannot support degree 6"),
+    ("hold-too-short", {"protocols.staircase.hold": 0.5}, "protocols.staircase.hold",
+     "0.5 s is fewer than 20 samples of dt = 0.05 s"),
+    ("staircase-too-long", {"protocols.staircase.hold": 1e9}, "protocols.staircase.hold", "more than the limit"),
+    # sines
+    ("omega-zero", {"protocols.sine.frequencies": [0.0]}, "protocols.sine.frequencies[0]",
+     "must be greater than 0 (got 0.0)"),
+    ("omega-negative", {"protocols.sine.frequencies": [0.5, -1.0]}, "protocols.sine.frequencies[1]",
+     "must be greater than 0"),
+    ("omega-above-nyquist", {"protocols.sine.frequencies": [100.0]}, "protocols.sine.frequencies[0]",
+     "at or above the Nyquist frequency pi/dt = 62.83 rad/s"),
+    ("omega-too-few-samples", {"protocols.sine.frequencies": [50.0]}, "protocols.sine.frequencies[0]",
+     "fewer than 8 samples per period"),
+    ("periods-zero", {"protocols.sine.periods": 0}, "protocols.sine.periods", "must be greater than or equal to 1"),
+    ("periods-huge", {"protocols.sine.periods": 10**30}, "protocols.sine.periods", "more than the limit of 1e+08"),
+    ("seed-too-big-for-hdf5", {"seed": 2**70}, "seed", "must be less than"),
+    # external plants: the config itself
+    ("external-no-callable", {"plant": {"kind": "external"}}, "plant",
+     "an external plant needs callable"),
+    ("callable-bad-format", {"plant": {"kind": "external", "callable": "rm -rf /"}}, "plant.callable",
+     "must look like package.module:function"),
+]
+
+
+def _config_text(spec) -> str:
+    import yaml
+    return spec if isinstance(spec, str) else yaml.safe_dump(rigs.small(**spec), sort_keys=False)
+
+
+@pytest.mark.parametrize("case_id,spec,key,fragment", CONFIG_CASES, ids=[c[0] for c in CONFIG_CASES])
+def test_bad_config(case_id, spec, key, fragment, tmp_path, capsys):
+    path = rigs.write(tmp_path / "bad.yaml", _config_text(spec))
+    code, out, err = run_cli(["check", path], capsys)
+    line = assert_one_line_error(code, err, fragment)
+    prefix = f"hwid: error: {path}: {key}" if key else f"hwid: error: {path}: "
+    assert line.startswith(prefix), f"{line!r} does not start with {prefix!r}"
+    # the library raises the same one line as ConfigError
+    with pytest.raises(C.ConfigError) as exc:
+        C.load(path)
+    assert str(exc.value) == line[len("hwid: error: "):]
+
+
+# ---------------------------------------------------------------- external callables (checked by hwid check)
+
+CALLABLE_CASES = [
+    ("callable-module-missing", "no_such_module_hwid:rig", "cannot import module 'no_such_module_hwid' (ModuleNotFoundError"),
+    ("callable-function-missing", "rigs:no_such_function", "module 'rigs' has no function 'no_such_function'"),
+    ("callable-not-callable", "rigs:NOT_CALLABLE", "module 'rigs' has no function 'NOT_CALLABLE'"),
+    ("callable-wrong-signature", "rigs:wrong_signature",
+     "'rigs:wrong_signature' must accept (u: numpy.ndarray, dt: float), its signature is wrong_signature(u)"),
+]
+
+
+@pytest.mark.parametrize("case_id,spec,fragment", CALLABLE_CASES, ids=[c[0] for c in CALLABLE_CASES])
+@pytest.mark.parametrize("command", ["check", "simulate"])
+def test_bad_external_callable(case_id, spec, fragment, command, tmp_path, capsys):
+    path = rigs.write(tmp_path / "rig.yaml", rigs.external(spec))
+    argv = [command, path] + (["--out", tmp_path / "out"] if command == "simulate" else [])
+    code, _, err = run_cli(argv, capsys)
+    assert_one_line_error(code, err, f"{path}: plant.callable: ", fragment)
+    assert not (tmp_path / "out" / "simulation.h5").exists()
+
+
+# ---------------------------------------------------------------- files and paths
+
+def test_missing_config_file(tmp_path, capsys):
+    code, _, err = run_cli(["check", tmp_path / "nope.yaml"], capsys)
+    assert_one_line_error(code, err, f"{tmp_path / 'nope.yaml'}: no such config file")
+
+
+def test_directory_as_config(tmp_path, capsys):
+    code, _, err = run_cli(["simulate", tmp_path, "--out", tmp_path / "out"], capsys)
+    assert_one_line_error(code, err, f"{tmp_path}: cannot read the config (IsADirectoryError)")
+
+
+def test_binary_config(tmp_path, capsys):
+    path = tmp_path / "bin.yaml"
+    path.write_bytes(b"\xff\xfe\x00garbage\x89PNG")
+    code, _, err = run_cli(["check", path], capsys)
+    assert_one_line_error(code, err, f"{path}: cannot read the config (UnicodeDecodeError)")
+
+
+def test_out_is_a_file(tmp_path, capsys):
+    cfg = rigs.write(tmp_path / "ok.yaml", rigs.small())
+    out = tmp_path / "taken"
+    out.write_text("not a directory")
+    code, _, err = run_cli(["simulate", cfg, "--out", out], capsys)
+    assert_one_line_error(code, err, f"--out {out}: exists and is not a directory")
+    assert out.read_text() == "not a directory"
+
+
+def test_out_below_a_file(tmp_path, capsys):
+    cfg = rigs.write(tmp_path / "ok.yaml", rigs.small())
+    (tmp_path / "taken").write_text("x")
+    code, _, err = run_cli(["simulate", cfg, "--out", tmp_path / "taken" / "sub"], capsys)
+    assert_one_line_error(code, err, "cannot create the directory (Not a directory)")
+
+
+def test_simulation_overflow_is_an_error(tmp_path, capsys):
+    """Numbers that pass the schema but overflow the simulation: a message, not a file of NaN."""
+    cfg = rigs.write(tmp_path / "big.yaml", rigs.small(**{"protocols.sine.amplitude": 1e300}))
+    code, _, err = run_cli(["simulate", cfg, "--out", tmp_path / "out"], capsys)
+    assert_one_line_error(code, err, "simulating experiment 'sine_0' gave NaN or inf")
+    assert not (tmp_path / "out" / "simulation.h5").exists()
+
+
+# ---------------------------------------------------------------- usage errors (click) are one line too
+
+@pytest.mark.parametrize("argv,fragment", [
+    (["simulate"], "Missing argument 'config'"),
+    (["frobnicate"], "No such command 'frobnicate'"),
+    (["check", "x.yaml", "--bogus"], "No such option: --bogus"),
+], ids=["missing-argument", "unknown-command", "unknown-option"])
+def test_usage_errors(argv, fragment, capsys):
+    code, _, err = run_cli(argv, capsys)
+    assert_one_line_error(code, err, fragment, "--help")
+
+
+# ---------------------------------------------------------------- the installed script, in a subprocess
+
+@pytest.mark.parametrize("make,fragment", [
+    (lambda d: ["check", rigs.write(d / "c.yaml", "a: [1\n")], "malformed YAML"),
+    (lambda d: ["check", rigs.write(d / "c.yaml", rigs.small(**{"plant.noise.sdt": 0.01}))],
+     "plant.noise.sdt: unknown key 'sdt' (did you mean 'std'?)"),
+    (lambda d: ["check", d / "missing.yaml"], "no such config file"),
+    (lambda d: ["simulate", rigs.write(d / "c.yaml", rigs.small()), "--out", rigs.write(d / "f", "x")],
+     "exists and is not a directory"),
+    (lambda d: ["simulate"], "Missing argument 'config'"),
+], ids=["malformed", "misspelt", "missing-file", "out-is-file", "usage"])
+def test_subprocess(make, fragment, tmp_path):
+    argv = [str(a) for a in make(tmp_path)]
+    r = subprocess.run([str(HWID)] + argv, capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert_one_line_error(r.returncode, r.stderr, fragment)
+    assert r.stdout == ""
+
+
+# ---------------------------------------------------------------- results files
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory):
+    """A real ``hwid simulate`` output and the config it came from."""
+    d = tmp_path_factory.mktemp("sim")
+    cfg_path = rigs.write(d / "small.yaml", rigs.small(**{"plant.noise.std": 0.0}))
+    with pytest.raises(SystemExit) as exc:
+        main(["simulate", str(cfg_path), "--out", str(d / "out")])
+    assert exc.value.code == 0
+    return d / "out" / "simulation.h5", C.load(cfg_path)
+
+
+def _copy(src: Path, dst: Path, **attrs) -> Path:
+    shutil.copyfile(src, dst)
+    with h5py.File(dst, "a") as f:
+        for k, v in attrs.items():
+            if v is None:
+                del f.attrs[k]
+            else:
+                f.attrs[k] = v
+    return dst
+
+
+def _truncated(src, dst):
+    dst.write_bytes(src.read_bytes()[: src.stat().st_size // 3])
+    return dst
+
+
+def _foreign(src, dst):
+    with h5py.File(dst, "w") as f:
+        f["data"] = np.arange(10.0)
+        f.attrs["creator"] = "someone else"
+    return dst
+
+
+RESULTS_CASES = [
+    ("missing", lambda s, d: d / "nope.h5", "simulation", "no such file"),
+    ("directory", lambda s, d: d, "simulation", "is a directory, expected an hwid results file"),
+    ("truncated", _truncated, "simulation", "not a readable HDF5 file (truncated or foreign)"),
+    ("text-file", lambda s, d: rigs.write(d, "name: not hdf5\n"), "simulation", "not a readable HDF5 file"),
+    ("empty-file", lambda s, d: (d.write_bytes(b""), d)[1], "simulation", "not a readable HDF5 file"),
+    ("foreign-hdf5", _foreign, "simulation", "not written by hwid (no hwid_kind attribute)"),
+    ("wrong-kind", lambda s, d: _copy(s, d), "nonlinear", "is a 'simulation' file, expected 'nonlinear'"),
+    ("wrong-kind-nonlinear-for-linear", lambda s, d: _copy(s, d, hwid_kind="nonlinear"), "linear",
+     "is a 'nonlinear' file, expected 'linear'"),
+    ("newer-format", lambda s, d: _copy(s, d, hwid_format=FORMAT + 98), "simulation",
+     f"written with results format {FORMAT + 98}, this hwid reads format {FORMAT}"),
+    ("format-garbage", lambda s, d: _copy(s, d, hwid_format="one"), "simulation", "cannot be read (corrupt file)"),
+]
+
+
+@pytest.mark.parametrize("case_id,make,kind,fragment", RESULTS_CASES, ids=[c[0] for c in RESULTS_CASES])
+def test_bad_results_file(case_id, make, kind, fragment, simulated, tmp_path):
+    src, _ = simulated
+    path = make(src, tmp_path / "case.h5") if case_id != "directory" else make(src, tmp_path)
+    with pytest.raises(ResultsError) as exc:
+        open_results(path, kind)
+    msg = str(exc.value)
+    assert "\n" not in msg and msg.startswith(f"{path}: "), msg
+    assert fragment in msg, msg
+
+
+def test_results_from_another_config(simulated, tmp_path):
+    src, cfg = simulated
+    other = C.loads(cfg.source_text.replace("seed: 3", "seed: 4"), source_path=str(tmp_path / "other.yaml"))
+    with pytest.raises(ResultsError, match=r"was written for a different config than .*other\.yaml "
+                                           r"\(config hash differs\)"):
+        open_results(src, "simulation", cfg=other)
+    with open_results(src, "simulation", cfg=cfg) as f:     # the matching config opens fine
+        recs = read_records(f["experiments"])
+    assert sorted(recs) == ["sine_0", "sine_1", "staircase_down", "staircase_up"]
+
+
+def test_damaged_experiment_group(simulated, tmp_path):
+    """A file whose header is fine but an experiment lost its 'y': ResultsError naming the group."""
+    path = _copy(simulated[0], tmp_path / "damaged.h5")
+    with h5py.File(path, "a") as f:
+        del f["experiments/sine_1/y"]
+    with open_results(path, "simulation") as f, pytest.raises(ResultsError, match=r"sine_1: experiment without"):
+        read_records(f["experiments"])
+
