@@ -180,6 +180,8 @@ class LinearIdCfg(_Strict):
     precompensator: Literal["auto", "backlash", "border_map"] = "auto"
     max_order: Annotated[int, Field(ge=1, le=8)] = 4
     fit_delay: bool = False
+    hold_correction: bool = True     # divide out the zero-order hold of the sampled input (dt/2 delay)
+    noise_model: Literal["auto", "white", "periodic"] = "auto"   # harmonic standard errors (stage 2)
 
 
 class IdentificationCfg(_Strict):

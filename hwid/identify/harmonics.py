@@ -1,0 +1,422 @@
+"""Harmonic analysis of the steady-state sine response (paper Section 5, eqs. 18-28).
+
+Two halves:
+
+* **The harmonic model** of eq. (20) for *any* polynomial ``h`` (not the p = 5 formulas of eq. 35):
+  with ``w(t) = r sin(omega t - phi)`` (eq. 17, ``r = U |G(j omega)|``) and ``alpha = omega t - phi``,
+  ``h(w) = sum_k Im(D_k(r) e^{j k alpha})`` where ``D_k(r) = sum_i c_i r^i M[i, k]`` and ``M`` is the
+  exact binomial expansion of ``sin^i`` (the power formulas 19a-b). Referred to the input's time
+  origin the complex Fourier coefficient of harmonic ``k`` is ``C_k = D_k(r) e^{-j k phi}``, i.e.
+  ``A_k = |D_k(r)|`` and ``beta_k = arg D_k(r) - k phi`` in eq. (20).
+* **Harmonic least squares** (eqs. 23-26 without their restriction to an integer number of samples
+  per period): the coefficients of ``1, cos(k omega t), sin(k omega t)`` are fitted by least squares at
+  the exact frequencies ``k omega``, accumulating the normal equations period by period (the paper
+  config has 3.1e6 samples at 0.01 rad/s), so no FFT bin leaks. With ``T/dt`` an integer this equals
+  the period averaging of eq. (23) followed by eqs. (26a-e).
+
+Convention: the complex coefficient of harmonic ``k`` is ``C_k = b_k + j a_k`` for the fitted
+``a_k cos(k omega t) + b_k sin(k omega t)``, so ``a_k cos + b_k sin = s_k sin(k omega t + psi_k)`` with
+``s_k = |C_k|`` and ``psi_k = arg C_k`` exactly as eqs. (26a-b).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from math import comb
+
+import numpy as np
+from scipy import stats
+
+
+# ------------------------------------------------------------------------------------ harmonic model
+
+def sine_power_matrix(degree: int) -> np.ndarray:
+    """``M[i, k]`` with ``sin^i(a) = M[i, 0] + sum_{k>=1} Im(M[i, k] e^{j k a})``, eqs. (19a-b).
+
+    ``M[i, k]`` is real for odd ``i`` (odd powers hold only sines, eq. 19b) and purely imaginary for
+    even ``i`` and ``k >= 1`` (even powers hold only cosines, eq. 19a).
+
+    Parameters
+    ----------
+    degree : int
+        Highest power ``p``; the matrix is ``(p + 1) x (p + 1)`` (harmonics ``0..p``).
+    """
+    p = int(degree)
+    if p < 0:
+        raise ValueError("degree must be >= 0")
+    M = np.zeros((p + 1, p + 1), dtype=complex)
+    for i in range(p + 1):
+        scale = (2j) ** (-i)
+        for m in range(i + 1):
+            n = 2 * m - i                     # exponent of e^{j n a}
+            e = scale * comb(i, m) * (-1) ** (i - m)
+            if n == 0:
+                M[i, 0] += e.real
+            elif n > 0:
+                M[i, n] += 2j * e             # e_n e^{jna} + conj(e_n) e^{-jna} = Im(2j e_n e^{jna})
+    return M
+
+
+@dataclass(frozen=True)
+class HarmonicModel:
+    """The harmonics of ``h(r sin(omega t - phi))`` (eq. 20) for a polynomial ``h``.
+
+    Parameters
+    ----------
+    h_coefficients : sequence of float
+        ``c_0, ..., c_p`` of ``h``, ascending powers (eq. 18).
+    """
+
+    h_coefficients: tuple[float, ...]
+    _M: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        c = tuple(float(x) for x in self.h_coefficients)
+        if not c or not np.all(np.isfinite(c)):
+            raise ValueError("h_coefficients must be a non-empty sequence of finite numbers")
+        object.__setattr__(self, "h_coefficients", c)
+        object.__setattr__(self, "_M", sine_power_matrix(len(c) - 1))
+
+    @property
+    def degree(self) -> int:
+        return len(self.h_coefficients) - 1
+
+    def relevant(self) -> np.ndarray:
+        """Harmonics ``k >= 1`` whose coefficient ``D_k(r)`` is not identically zero."""
+        c = np.asarray(self.h_coefficients)
+        nz = (np.abs(c[:, None] * self._M) > 0).any(axis=0)
+        return np.flatnonzero(nz[1:]) + 1
+
+    def poly(self, k: int) -> np.ndarray:
+        """Complex coefficients (ascending powers of r) of ``D_k(r)``."""
+        k = int(k)
+        if k > self.degree:
+            return np.zeros(1, dtype=complex)
+        return np.asarray(self.h_coefficients) * self._M[:, k]
+
+    def D(self, r, ks) -> np.ndarray:
+        """``D_k(r)`` for each ``k`` in ``ks`` (shape ``r.shape + (len(ks),)``)."""
+        r = np.asarray(r, float)
+        ks = np.atleast_1d(ks)
+        out = np.zeros(r.shape + (ks.size,), dtype=complex)
+        for j, k in enumerate(ks):
+            out[..., j] = np.polynomial.polynomial.polyval(r, self.poly(k)) if k <= self.degree else 0.0
+        return out
+
+    def dD(self, r, ks) -> np.ndarray:
+        """``d D_k / d r``."""
+        r = np.asarray(r, float)
+        ks = np.atleast_1d(ks)
+        out = np.zeros(r.shape + (ks.size,), dtype=complex)
+        for j, k in enumerate(ks):
+            if k <= self.degree:
+                out[..., j] = np.polynomial.polynomial.polyval(r, np.polynomial.polynomial.polyder(self.poly(k)))
+        return out
+
+    def coefficients(self, r: float, phi: float, ks) -> np.ndarray:
+        """Complex Fourier coefficients ``C_k = D_k(r) e^{-j k phi}`` of ``h(r sin(omega t - phi))``."""
+        ks = np.atleast_1d(ks)
+        return self.D(r, ks) * np.exp(-1j * ks * phi)
+
+    def amplitudes_phases(self, gain: float, phase: float, amplitude: float = 1.0, ks=None):
+        """``A_k`` and ``beta_k`` of eq. (20) for ``|G| = gain``, ``phi = phase`` and ``U = amplitude``.
+
+        Returns ``(ks, A, beta)``; ``x(t) = A_0 + sum_{k>=1} A_k sin(k omega t + beta_k)`` (``A_0`` is
+        the signed mean, eq. 35e).
+        """
+        ks = np.arange(self.degree + 1) if ks is None else np.atleast_1d(ks)
+        r = amplitude * gain
+        D = self.D(r, ks)
+        A = np.abs(D)
+        beta = np.angle(D) - ks * phase
+        dc = ks == 0
+        A = np.where(dc, D.real, A)
+        beta = np.where(dc, 0.0, beta)
+        return ks, A, beta
+
+
+# ------------------------------------------------------------------------------- harmonic least squares
+
+@dataclass(frozen=True)
+class PeriodSums:
+    """Normal equations of the harmonic regression, one set per whole period of the record.
+
+    Regressors ``[1, cos(omega t), ..., cos(K omega t), sin(omega t), ..., sin(K omega t)]`` at the
+    sample times ``t = n dt`` (absolute, so phases refer to the input's ``t = 0``). Period ``p`` holds
+    the samples with ``p T <= t < (p + 1) T``."""
+
+    omega: float
+    dt: float
+    k_max: int
+    XtX: np.ndarray      # (P, m, m)
+    Xty: np.ndarray      # (P, m)
+    yty: np.ndarray      # (P,)
+    n: np.ndarray        # (P,) samples per period
+
+    @property
+    def periods(self) -> int:
+        return self.n.size
+
+
+def _design(t: np.ndarray, omega: float, k_max: int) -> np.ndarray:
+    e1 = np.exp(1j * omega * t)
+    X = np.empty((t.size, 2 * k_max + 1))
+    X[:, 0] = 1.0
+    e = np.ones_like(e1)
+    for k in range(1, k_max + 1):
+        # direct evaluation every 8 harmonics keeps the recursion's rounding error negligible
+        e = e * e1 if k % 8 else np.exp(1j * k * omega * t)
+        X[:, k] = e.real
+        X[:, k_max + k] = e.imag
+    return X
+
+
+def period_sums(y, dt: float, omega: float, k_max: int, chunk: int = 1 << 17) -> PeriodSums:
+    """Accumulate the harmonic normal equations per whole period of ``y`` (memory ~ chunk x 2K+1).
+
+    Parameters
+    ----------
+    y : array_like
+        The measured output, sampled at ``t = n dt`` from the start of the sine (eq. 22).
+    dt : float
+        Sample time, s.
+    omega : float
+        Fundamental frequency of the input, rad/s.
+    k_max : int
+        Highest harmonic fitted (capped by the caller below Nyquist).
+    chunk : int
+        Samples processed at a time.
+    """
+    y = np.asarray(y, float)
+    T = 2 * np.pi / omega
+    n_tot = y.size
+    P = int(np.floor(n_tot * dt / T + 1e-9))
+    if P < 1:
+        raise ValueError(f"the record holds less than one period of {T:g} s")
+    # first sample of each period: ceil(p T / dt)
+    bounds = np.ceil(np.arange(P + 1) * T / dt - 1e-9).astype(np.int64)
+    bounds[-1] = min(bounds[-1], n_tot)
+    m = 2 * k_max + 1
+    XtX = np.zeros((P, m, m))
+    Xty = np.zeros((P, m))
+    yty = np.zeros(P)
+    for p in range(P):
+        a, b = bounds[p], bounds[p + 1]
+        for s in range(a, b, chunk):
+            e = min(s + chunk, b)
+            X = _design(np.arange(s, e) * dt, omega, k_max)
+            ys = y[s:e]
+            XtX[p] += X.T @ X
+            Xty[p] += X.T @ ys
+            yty[p] += ys @ ys
+    return PeriodSums(float(omega), float(dt), int(k_max), XtX, Xty, yty, np.diff(bounds))
+
+
+def _complex(theta: np.ndarray, k_max: int) -> np.ndarray:
+    """``C_k = b_k + j a_k`` for ``k = 1..K`` from ``[dc, a_1..a_K, b_1..b_K]``."""
+    return theta[..., k_max + 1:] + 1j * theta[..., 1:k_max + 1]
+
+
+@dataclass(frozen=True)
+class HarmonicFit:
+    """Least-squares harmonic coefficients of the steady-state response over whole periods.
+
+    Attributes
+    ----------
+    ks : array of int
+        Harmonics ``1..K``.
+    coef : complex array
+        ``C_k = s_k e^{j psi_k}`` (eqs. 26a-b).
+    var : array
+        Variance of each real component (Re and Im) of ``C_k``, per harmonic.
+    dc, dc_var : float
+        The mean ``s_0`` (eq. 26c) and its variance.
+    noise_model : str
+        ``"white"`` (variances from the residual sample variance) or ``"periodic"`` (from the spread
+        of the per-period estimates, honest for coloured noise).
+    dof : float
+        Degrees of freedom of the variance estimate (``inf`` for white).
+    sigma : float
+        Residual standard deviation (white-noise estimate).
+    first_period, periods, n_samples : int
+        The periods used (after the steady-state check) and their number of samples.
+    periodicity_p : float
+        p-value of the test "first half of the used periods == second half".
+    steady_p : float
+        p-value of the test of the first used period against the late periods.
+    white_p : float
+        p-value of the whiteness check that chose ``noise_model``.
+    block_coef : complex array (periods, K)
+        Per-period estimates (for diagnostics and the Fig. 15 overlay).
+    """
+
+    omega: float
+    ks: np.ndarray
+    coef: np.ndarray
+    var: np.ndarray
+    dc: float
+    dc_var: float
+    noise_model: str
+    dof: float
+    sigma: float
+    first_period: int
+    periods: int
+    n_samples: int
+    periodicity_p: float
+    steady_p: float
+    white_p: float
+    var_white: np.ndarray
+    var_periodic: np.ndarray
+    block_coef: np.ndarray = field(repr=False)
+
+    @property
+    def se(self) -> np.ndarray:
+        return np.sqrt(self.var)
+
+    @property
+    def amplitude(self) -> np.ndarray:
+        """``s_k``, eq. (26a)."""
+        return np.abs(self.coef)
+
+    @property
+    def phase(self) -> np.ndarray:
+        """``psi_k``, eq. (26b)."""
+        return np.angle(self.coef)
+
+    def significant(self, alpha: float = 1e-3) -> np.ndarray:
+        """Harmonics whose amplitude is detectably nonzero (``|C_k|^2 / var_k`` against chi^2_2)."""
+        stat = np.abs(self.coef) ** 2 / self.var
+        return self.ks[stat > 2 * stats.f.ppf(1 - alpha, 2, self.dof if np.isfinite(self.dof) else 1e9)]
+
+    def to_dict(self) -> dict:
+        return {"omega": self.omega, "ks": self.ks.astype(float), "coef_re": self.coef.real,
+                "coef_im": self.coef.imag, "var": self.var, "dc": self.dc, "dc_var": self.dc_var,
+                "noise_model": self.noise_model, "dof": float(self.dof), "sigma": self.sigma,
+                "first_period": self.first_period, "periods": self.periods, "n_samples": self.n_samples,
+                "periodicity_p": self.periodicity_p, "steady_p": self.steady_p, "white_p": self.white_p,
+                "var_white": self.var_white, "var_periodic": self.var_periodic,
+                "block_coef_re": self.block_coef.real, "block_coef_im": self.block_coef.imag}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "HarmonicFit":
+        return cls(float(d["omega"]), np.asarray(d["ks"]).astype(int),
+                   np.asarray(d["coef_re"]) + 1j * np.asarray(d["coef_im"]), np.asarray(d["var"]),
+                   float(d["dc"]), float(d["dc_var"]), str(d["noise_model"]), float(d["dof"]),
+                   float(d["sigma"]), int(d["first_period"]), int(d["periods"]), int(d["n_samples"]),
+                   float(d["periodicity_p"]), float(d["steady_p"]), float(d["white_p"]),
+                   np.asarray(d["var_white"]), np.asarray(d["var_periodic"]),
+                   np.asarray(d["block_coef_re"]) + 1j * np.asarray(d["block_coef_im"]))
+
+
+def _solve(XtX, Xty):
+    return np.linalg.solve(XtX, Xty[..., None])[..., 0]
+
+
+def _component_var(theta_blocks: np.ndarray, k_max: int) -> tuple[np.ndarray, float, int]:
+    """Per-harmonic variance of one real component of a *single* block estimate, pooled over Re/Im."""
+    B = theta_blocks.shape[0]
+    d = theta_blocks - theta_blocks.mean(axis=0)
+    ss = (d ** 2).sum(axis=0) / (B - 1)
+    return 0.5 * (ss[1:k_max + 1] + ss[k_max + 1:]), float(ss[0]), B - 1
+
+
+def fit_harmonics(y, dt: float, omega: float, k_max: int, first_period: int = 0,
+                  sums: PeriodSums | None = None, steady_alpha: float = 1e-3, white_alpha: float = 1e-3,
+                  noise_model: str = "auto", min_periods: int = 2) -> HarmonicFit:
+    """Harmonic coefficients of the steady-state response over whole periods (eqs. 23-26, LS form).
+
+    Steady state: starting at ``first_period`` (the lead-in periods are discarded), the first
+    remaining period is compared with the mean of the late half of the record (an F test on all
+    harmonic coefficients, level ``steady_alpha``); while it differs it is dropped too. The remaining
+    whole periods are fitted jointly; the first half of them is tested against the second half
+    (``periodicity_p``, a warning sign when small).
+
+    Standard errors: ``"white"`` uses ``sigma^2 (X^T X)^{-1}`` with the residual variance;
+    ``"periodic"`` uses the spread of the per-period estimates (each harmonic gets the noise level
+    near its own frequency, honest for coloured noise; Student-t with ``2(P - 1)`` degrees of
+    freedom); ``"auto"`` uses white unless the per-harmonic spreads reject it (F test, level
+    ``white_alpha``, Bonferroni over harmonics).
+
+    Parameters
+    ----------
+    y : array_like
+        Output samples from ``t = 0`` (the start of the sine, lead-in included).
+    dt, omega : float
+        Sample time (s) and fundamental (rad/s).
+    k_max : int
+        Highest harmonic fitted.
+    first_period : int
+        Periods to discard at least (the protocol's lead-in).
+    """
+    if noise_model not in ("auto", "white", "periodic"):
+        raise ValueError(f"noise_model must be 'auto', 'white' or 'periodic', got {noise_model!r}")
+    k_max = int(k_max)
+    S = sums if sums is not None else period_sums(y, dt, omega, k_max)
+    P = S.periods
+    if P - first_period < 1:
+        raise ValueError(f"no whole period left after {first_period} lead-in periods ({P} in the record)")
+    theta_p = _solve(S.XtX, S.Xty)                       # per-period estimates (P, m)
+    m = 2 * k_max + 1
+
+    # -- steady state: drop leading periods while they differ from the late half
+    start = int(first_period)
+    late = np.arange(max(start + 1, P - max((P - start) // 2, 1)), P)
+    steady_p = 1.0
+    if late.size >= 3:
+        vk, v0, df_l = _component_var(theta_p[late], k_max)
+        vfull = np.concatenate([[v0], vk, vk])
+        vfull = np.where(vfull > 0, vfull, np.finfo(float).tiny)
+        ref = theta_p[late].mean(axis=0)
+        while True:
+            stat = float(np.sum((theta_p[start] - ref) ** 2 / (vfull * (1 + 1 / late.size)))) / m
+            steady_p = float(stats.f.sf(stat, m, max(df_l * 2, 1)))
+            if steady_p >= steady_alpha or P - (start + 1) < max(min_periods, late.size):
+                break
+            start += 1
+    used = np.arange(start, P)
+    Pu = used.size
+
+    XtX = S.XtX[used].sum(axis=0)
+    Xty = S.Xty[used].sum(axis=0)
+    yty = S.yty[used].sum()
+    n = int(S.n[used].sum())
+    theta = np.linalg.solve(XtX, Xty)
+    rss = max(float(yty - theta @ Xty), 0.0)
+    sigma2 = rss / max(n - m, 1)
+    inv = np.linalg.inv(XtX)
+    d = np.diag(inv)
+    var_white = sigma2 * 0.5 * (d[1:k_max + 1] + d[k_max + 1:])
+    dc_var_white = sigma2 * d[0]
+
+    # -- per-period spread: the variance of the mean of Pu periods
+    white_p = 1.0
+    if Pu >= 2:
+        vk, v0, dfb = _component_var(theta_p[used], k_max)
+        var_per = vk / Pu
+        dc_var_per = v0 / Pu
+        dfk = 2 * dfb
+        # white hypothesis: var_per / var_white ~ chi2(dfk)/dfk
+        ratio = var_per / np.where(var_white > 0, var_white, np.finfo(float).tiny)
+        pv = 2 * np.minimum(stats.chi2.sf(ratio * dfk, dfk), stats.chi2.cdf(ratio * dfk, dfk))
+        white_p = float(min(1.0, pv.min() * k_max))
+    else:
+        var_per, dc_var_per, dfk = var_white.copy(), dc_var_white, np.inf
+
+    if noise_model == "white" or Pu < 2 or (noise_model == "auto" and white_p >= white_alpha):
+        model, var, dc_var, dof = "white", var_white, dc_var_white, np.inf
+    else:
+        model, var, dc_var, dof = "periodic", var_per, dc_var_per, float(dfk)
+
+    # -- periodicity check: first half of the used periods against the second half
+    periodicity_p = 1.0
+    if Pu >= 4:
+        h = Pu // 2
+        t1 = np.linalg.solve(S.XtX[used[:h]].sum(0), S.Xty[used[:h]].sum(0))
+        t2 = np.linalg.solve(S.XtX[used[h:]].sum(0), S.Xty[used[h:]].sum(0))
+        vfull = np.concatenate([[dc_var], var, var]) * Pu * (1 / h + 1 / (Pu - h))
+        stat = float(np.sum((t1 - t2) ** 2 / vfull)) / m
+        periodicity_p = float(stats.f.sf(stat, m, dof if np.isfinite(dof) else 1e9))
+
+    return HarmonicFit(float(omega), np.arange(1, k_max + 1), _complex(theta, k_max), np.asarray(var),
+                       float(theta[0]), float(dc_var), model, float(dof), float(np.sqrt(sigma2)), int(start),
+                       int(Pu), n, periodicity_p, steady_p, white_p, np.asarray(var_white),
+                       np.asarray(var_per), _complex(theta_p[used], k_max))

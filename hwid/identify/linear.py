@@ -1,0 +1,633 @@
+"""Stage 2: the linear subsystem G(j omega) behind the pre-compensator (paper Section 5, Fig. 8).
+
+For each frequency of ``protocols.sine`` the pre-compensator built from the *estimated normalised*
+input nonlinearity (stage 1) turns ``z = U sin(omega t)`` (eq. 15) into ``v ~ z`` (eq. 16), so that in
+normalised units ``x = h(G * z)`` (eqs. 17-18, ``G(0) = 1``). From the steady-state output the
+harmonic coefficients ``C_k`` are fitted by least squares (:mod:`hwid.identify.harmonics`,
+eqs. 23-26) and ``|G|``, ``phi = -arg G`` are estimated with the harmonic model of eq. (20):
+
+* ``method="nls"`` (default): weighted nonlinear least squares of ``C_k = D_k(U|G|) e^{-jk phi}`` over
+  every harmonic the model predicts: the maximum-likelihood estimate under Gaussian noise; 95 %
+  intervals from the Fisher information (which, evaluated at the estimate, is the Cramer-Rao bound).
+* ``method="paper"``: eq. (37) generalised to any harmonic ``k`` and any polynomial: ``|G|`` from
+  ``|D_k(U|G|)| = s_k`` (the root that best explains the other harmonics when ``k < p``), and
+  ``phi = (arg D_k - psi_k)/k + 2 pi m / k`` with the k-fold ambiguity ``m`` resolved by the other
+  harmonics (the fundamental pins it). Intervals by the delta method.
+
+Two small effects are divided out of the measured fundamental of ``w`` (both recorded per frequency):
+the zero-order hold of the sampled input (``(1 - e^{-j omega dt})/(j omega dt)``, a delay of dt/2 that
+is several standard errors at 0.2 rad/s in the paper's setting; ``hold_correction``) and what is left
+of the input nonlinearity after the pre-compensator as the *model* predicts it (``F_hat[P_hat(z)]``:
+exactly z for a Backlash plant, one switching sample per reversal for a Backlash-Inverse plant).
+
+The measurement offset is treated as an unknown nuisance parameter (a real sensor has one), so the
+mean ``s_0`` carries no information about G and is left out of both estimators and of the bound.
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional, Protocol, Sequence
+
+import numpy as np
+from scipy import optimize, stats
+
+from hwid import HwidError
+from hwid.identify.harmonics import HarmonicFit, HarmonicModel, fit_harmonics, period_sums
+
+
+class ExtrapolationWarning(UserWarning):
+    """``U |G|`` drives ``w`` outside the range over which ``h`` was identified (stage 1)."""
+
+
+class NonlinearLike(Protocol):
+    """What stage 2 needs from a stage 1 result (:class:`hwid.identify.nonlinear.NonlinearResult`)."""
+
+    h_coefficients: Sequence[float]
+    w_range: tuple[float, float]
+
+    def input_nonlinearity(self): ...
+
+
+@dataclass(frozen=True)
+class KnownNonlinear:
+    """A stage 1 stand-in built from a known normalised model (tests, the paper reproduction).
+
+    ``w_range`` is the range of ``w`` the config's staircases visit (where stage 1 would identify h).
+    """
+
+    input: Any                                   # hwid.model.InputNonlinearity (normalised)
+    h_coefficients: tuple[float, ...]
+    w_range: tuple[float, float] = (-np.inf, np.inf)
+
+    def input_nonlinearity(self):
+        return self.input
+
+    def h(self, w):
+        return np.polynomial.polynomial.polyval(np.asarray(w, float), self.h_coefficients)
+
+    @classmethod
+    def from_config(cls, cfg) -> "KnownNonlinear":
+        """The true normalised ``(F_bar, h_bar)`` of ``cfg.plant`` (eqs. 4a-c)."""
+        from hwid import protocols
+        from hwid.blocks.static import PolynomialH
+        from hwid.model import from_config
+        if cfg.plant.kind != "hammerstein_wiener":
+            raise HwidError("the true nonlinearity is only known for a simulated (hammerstein_wiener) plant")
+        m = from_config(cfg.plant).normalised()
+        if not isinstance(m.output, PolynomialH):
+            raise HwidError("stage 2 needs a polynomial h (the config gives a piecewise one)")
+        w_range = (-np.inf, np.inf)
+        if cfg.protocols.staircase is not None:
+            ws = []
+            for st in protocols.staircases(cfg):
+                v = m.input.steady(st.all_levels, 0.0)[st.lead_in.size:]
+                ws.append(v)
+            ws = np.concatenate(ws)
+            w_range = (float(ws.min()), float(ws.max()))
+        return cls(m.input, tuple(m.output.coefficients), w_range)
+
+
+# ------------------------------------------------------------------------------------------- the bound
+
+def fisher(h_coefficients, amplitude: float, gain: float, phase: float, component_var, harmonics=None,
+           input_gain: float = 1.0) -> np.ndarray:
+    """Fisher information of ``(|G|, phi)`` from the harmonic coefficients ``C_k`` (eq. 20).
+
+    ``component_var`` is the variance of Re C_k and Im C_k (scalar or one per harmonic)."""
+    hm = HarmonicModel(tuple(h_coefficients))
+    ks = hm.relevant() if harmonics is None else np.atleast_1d(harmonics).astype(int)
+    ks = ks[(ks >= 1) & (ks <= hm.degree)]
+    rho = amplitude * input_gain
+    v = np.broadcast_to(np.asarray(component_var, float), ks.shape)
+    C = hm.coefficients(rho * gain, phase, ks)
+    dg = rho * hm.dD(rho * gain, ks) * np.exp(-1j * ks * phase)
+    dp = -1j * ks * C
+    J = np.stack([dg, dp], axis=-1)                        # (K, 2) complex
+    return np.einsum("ki,kj->ij", J.conj(), J / v[:, None]).real
+
+
+def crlb(h_coefficients, amplitude: float, gain: float, phase: float, sigma: float, n_samples: int,
+         harmonics=None, input_gain: float = 1.0, component_var=None) -> tuple[float, float]:
+    """Cramer-Rao lower bounds on the variances of ``|G(j omega)|`` and ``phi(omega)``.
+
+    The output is ``y = h(U |G| sin(omega t - phi)) + offset + xi`` (eqs. 17, 18, 22) over
+    ``n_samples`` samples spanning whole periods, with white Gaussian ``xi`` of standard deviation
+    ``sigma`` and an unknown offset. The harmonic coefficients are then sufficient with component
+    variance ``2 sigma^2 / n_samples``, and the information is that of the model of eq. (20).
+
+    Parameters
+    ----------
+    h_coefficients : sequence of float
+        ``h`` (normalised, ascending powers).
+    amplitude : float
+        ``U`` of eq. (15).
+    gain, phase : float
+        ``|G(j omega)|`` and ``phi(omega)`` where the bound is evaluated.
+    sigma : float
+        Noise standard deviation.
+    n_samples : int
+        Number of samples used (whole periods).
+    harmonics : sequence of int, optional
+        Harmonics used (default: every harmonic the model predicts).
+    input_gain : float
+        ``|kappa|``, the input correction (hold, residual input nonlinearity); 1 by default.
+    component_var : array_like, optional
+        Per-harmonic variance of Re/Im C_k; overrides ``sigma`` and ``n_samples`` (coloured noise).
+
+    Returns
+    -------
+    (var_gain, var_phase) : tuple of float
+    """
+    if component_var is None:
+        if not (sigma > 0 and n_samples > 0):
+            raise ValueError("sigma and n_samples must be positive")
+        component_var = 2 * sigma ** 2 / n_samples
+    F = fisher(h_coefficients, amplitude, gain, phase, component_var, harmonics, input_gain)
+    try:
+        C = np.linalg.inv(F)
+    except np.linalg.LinAlgError:
+        return float("inf"), float("inf")
+    return float(C[0, 0]), float(C[1, 1])
+
+
+def _wrap(phi):
+    """To ``(-pi, pi]``."""
+    return float(np.pi - np.mod(np.pi - phi, 2 * np.pi))
+
+
+# ---------------------------------------------------------------------------------------- the estimator
+
+class LinearEstimator:
+    """Estimate ``G(j omega)`` from one sine experiment (Section 5).
+
+    Parameters
+    ----------
+    method : {"nls", "paper"}
+        Weighted NLS over all harmonics (ML), or eq. (37) with one harmonic.
+    harmonic : int, optional
+        The harmonic of ``method="paper"`` (default: the highest significant one).
+    k_max : int, optional
+        Highest harmonic fitted by least squares (default ``p + 2``, below Nyquist).
+    confidence : float
+        Level of the intervals.
+    hold_correction : bool
+        Divide out the zero-order hold of the sampled input.
+    noise_model : {"auto", "white", "periodic"}
+        See :func:`hwid.identify.harmonics.fit_harmonics`.
+
+    Attributes
+    ----------
+    gain_, phase_ : float
+        ``|G_hat(j omega)|`` and ``phi_hat = -arg G_hat`` (rad, wrapped to (-pi, pi]).
+    gain_ci_, phase_ci_ : tuple
+        Intervals at ``confidence``.
+    cov_ : ndarray (2, 2)
+        Covariance of ``(gain, phase)``.
+    crlb_ : tuple
+        Cramer-Rao bound on the variances at the estimate, with the estimated noise.
+    estimates_ : dict
+        Both estimators' results (``"nls"`` and ``"paper"``), each ``gain, phase, cov, ...``.
+    harmonics_ : HarmonicFit
+    input_correction_ : complex
+        ``kappa``: the measured fundamental of ``w`` is ``U kappa G(j omega)``.
+    extrapolated_ : bool
+    warnings_ : list of str
+    """
+
+    def __init__(self, method: str = "nls", harmonic: Optional[int] = None, k_max: Optional[int] = None,
+                 confidence: float = 0.95, hold_correction: bool = True, noise_model: str = "auto"):
+        self.method = method
+        self.harmonic = harmonic
+        self.k_max = k_max
+        self.confidence = confidence
+        self.hold_correction = hold_correction
+        self.noise_model = noise_model
+
+    # -- helpers
+    def _quantile(self, dof: float) -> float:
+        a = 0.5 + self.confidence / 2
+        return float(stats.norm.ppf(a) if not np.isfinite(dof) else stats.t.ppf(a, dof))
+
+    def _input_correction(self, record, sine, nonlinear, hf: HarmonicFit) -> tuple[complex, float]:
+        kappa = 1.0 + 0j
+        thd = 0.0
+        u = getattr(record, "u", None)
+        if u is not None and nonlinear is not None:
+            v = np.asarray(nonlinear.input_nonlinearity().apply(np.asarray(u, float)), float)
+            if not np.allclose(v, sine.z[: v.size], rtol=0, atol=1e-12 * max(1.0, sine.amplitude)):
+                S = period_sums(v, record.dt, sine.omega, 3)
+                used = slice(hf.first_period, hf.first_period + hf.periods)
+                th = np.linalg.solve(S.XtX[used].sum(0), S.Xty[used].sum(0))
+                c = th[4:] + 1j * th[1:4]
+                kappa = complex(c[0] / sine.amplitude)
+                thd = float(np.sqrt(np.sum(np.abs(c[1:]) ** 2)) / abs(c[0]))
+        if self.hold_correction:
+            x = sine.omega * record.dt
+            kappa *= (1 - np.exp(-1j * x)) / (1j * x)
+        return complex(kappa), thd
+
+    def fit(self, record, sine, nonlinear) -> "LinearEstimator":
+        """Fit one sine experiment.
+
+        Parameters
+        ----------
+        record : hwid.plant.Record
+            The experiment (``y`` from the start of the sine; ``u`` the pre-compensated input).
+        sine : hwid.protocols.Sine
+            The sine of eq. (15) that was pre-compensated.
+        nonlinear : NonlinearLike
+            Stage 1 result: ``h_coefficients``, ``w_range``, ``input_nonlinearity()``.
+        """
+        if self.method not in ("nls", "paper"):
+            raise ValueError(f"method must be 'nls' or 'paper', got {self.method!r}")
+        if not 0 < self.confidence < 1:
+            raise ValueError("confidence must be in (0, 1)")
+        y = np.asarray(record.y, float)
+        dt, omega, U = float(record.dt), float(sine.omega), float(sine.amplitude)
+        hm = HarmonicModel(tuple(nonlinear.h_coefficients))
+        p = hm.degree
+        if p < 1:
+            raise ValueError("h must have degree >= 1")
+        spp = 2 * np.pi / omega / dt
+        k_cap = max(1, min(int(np.floor((np.pi / dt) / omega - 1e-9)), int((spp - 1) // 2)))
+        k_max = min(self.k_max or p + 2, k_cap)
+        self.warnings_ = []
+
+        hf = fit_harmonics(y, dt, omega, k_max, first_period=sine.lead_in_periods, noise_model=self.noise_model)
+        self.harmonics_ = hf
+        if hf.first_period > sine.lead_in_periods:
+            self.warnings_.append(f"omega = {omega:g} rad/s: the response was not yet periodic after the "
+                                  f"{sine.lead_in_periods} lead-in periods; {hf.first_period - sine.lead_in_periods} "
+                                  f"more discarded")
+        if hf.steady_p < 1e-3:
+            self.warnings_.append(f"omega = {omega:g} rad/s: no steady state reached (the first used period "
+                                  f"still differs from the late ones, p = {hf.steady_p:.2g}); add lead-in periods")
+        if hf.periodicity_p < 1e-3:
+            self.warnings_.append(f"omega = {omega:g} rad/s: the response is not periodic (first half of the "
+                                  f"periods differs from the second, p = {hf.periodicity_p:.2g})")
+
+        kappa, thd = self._input_correction(record, sine, nonlinear, hf)
+        self.input_correction_ = kappa
+        self.input_distortion_ = thd
+        if thd > 1e-2:
+            self.warnings_.append(f"omega = {omega:g} rad/s: the pre-compensated input is not a pure sine "
+                                  f"(model-predicted distortion {100 * thd:.2g} %); G is biased by its harmonics")
+        rho, th_k = U * abs(kappa), float(np.angle(kappa))
+
+        ks_all = hm.relevant()
+        ks = ks_all[ks_all <= k_max]
+        if ks.size == 0:
+            raise HwidError(f"omega = {omega:g} rad/s: no harmonic of h is below the Nyquist frequency")
+        idx = ks - 1
+        c = hf.coef[idx]
+        var = hf.var[idx]
+        sig = set(hf.significant().tolist()) & set(ks.tolist())
+        if not sig:
+            self.warnings_.append(f"omega = {omega:g} rad/s: no harmonic is significantly above the noise; "
+                                  f"G is not determined (raise U or the number of periods)")
+        self.used_harmonics_ = ks
+        self.significant_harmonics_ = np.array(sorted(sig), dtype=int)
+
+        def pred(g, phi):
+            return hm.D(rho * g, ks) * np.exp(-1j * ks * (phi - th_k))
+
+        def cost(g, phi):
+            return float(np.sum(np.abs(c - pred(g, phi)) ** 2 / var))
+
+        q = self._quantile(hf.dof)
+        est = {"nls": self._nls(hm, ks, c, var, rho, th_k, cost), "paper": None}
+        try:
+            est["paper"] = self._paper(hm, ks, c, var, rho, th_k, cost, sorted(sig))
+        except HwidError as err:
+            if self.method == "paper":
+                raise
+            est["paper"] = {"error": str(err)}
+        for e in est.values():
+            if e and "gain" in e:
+                e["phase"] = _wrap(e["phase"])
+                se = np.sqrt(np.diag(e["cov"]))
+                e["gain_ci"] = (e["gain"] - q * se[0], e["gain"] + q * se[0])
+                e["phase_ci"] = (e["phase"] - q * se[1], e["phase"] + q * se[1])
+        self.estimates_ = est
+        chosen = est[self.method]
+        self.gain_, self.phase_ = chosen["gain"], chosen["phase"]
+        self.cov_ = np.asarray(chosen["cov"])
+        self.gain_ci_, self.phase_ci_ = chosen["gain_ci"], chosen["phase_ci"]
+        self.crlb_ = crlb(hm.h_coefficients, U, self.gain_, self.phase_, hf.sigma, hf.n_samples, ks,
+                          abs(kappa), component_var=var)
+        self.predicted_ = pred(self.gain_, self.phase_)
+
+        # -- extrapolation of h beyond the staircases' range (stage 1)
+        lo, hi = (float(x) for x in nonlinear.w_range)
+        r = rho * self.gain_
+        self.w_amplitude_ = r
+        self.extrapolated_ = bool(-r < lo - 1e-12 or r > hi + 1e-12)
+        if self.extrapolated_:
+            msg = (f"omega = {omega:g} rad/s: U|G| = {r:.3g} drives w over [{-r:.3g}, {r:.3g}], outside "
+                   f"[{lo:.3g}, {hi:.3g}] where h was identified; h is extrapolated there")
+            self.warnings_.append(msg)
+            warnings.warn(msg, ExtrapolationWarning, stacklevel=2)
+        return self
+
+    def _nls(self, hm, ks, c, var, rho, th_k, cost) -> dict:
+        """Weighted NLS over the harmonics (ML under Gaussian noise); intervals from the Fisher matrix."""
+        sd = np.sqrt(var)
+        # coarse grid: cost(g, phi) = const + sum |D|^2/v - 2 Re(conj(c) D e^{-jk phi'}) / v
+        g_grid = np.geomspace(1e-3, 1e2, 500)
+        D = hm.D(rho * g_grid, ks)                                      # (G, K)
+        phis = np.linspace(0, 2 * np.pi, 720, endpoint=False)
+        E = np.exp(-1j * np.outer(phis, ks))                            # (F, K)
+        grid = (np.abs(D) ** 2 / var).sum(1)[:, None] - 2 * ((np.conj(c) / var) * D) @ E.T
+        i, j = np.unravel_index(np.argmin(grid.real), grid.shape)
+        x0 = np.array([g_grid[i], phis[j] + th_k])
+
+        def res(x):
+            r = (c - hm.D(rho * x[0], ks) * np.exp(-1j * ks * (x[1] - th_k))) / sd
+            return np.concatenate([r.real, r.imag])
+
+        def jac(x):
+            e = np.exp(-1j * ks * (x[1] - th_k))
+            dg = -rho * hm.dD(rho * x[0], ks) * e / sd
+            dp = 1j * ks * hm.D(rho * x[0], ks) * e / sd
+            return np.column_stack([np.concatenate([dg.real, dg.imag]), np.concatenate([dp.real, dp.imag])])
+
+        sol = optimize.least_squares(res, x0, jac=jac, method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14)
+        g, phi = sol.x
+        if g < 0:   # the odd part of h is invariant under (g, phi) -> (-g, phi + pi); report g > 0
+            g, phi = -g, phi + np.pi
+            sol = optimize.least_squares(res, np.array([g, phi]), jac=jac, method="lm")
+            g, phi = sol.x
+        Jm = jac(np.array([g, phi]))
+        try:
+            cov = np.linalg.inv(Jm.T @ Jm)
+        except np.linalg.LinAlgError:
+            cov = np.full((2, 2), np.inf)
+        return {"gain": float(g), "phase": float(phi), "cov": cov, "cost": float(sol.cost * 2),
+                "dof": int(2 * ks.size - 2)}
+
+    def _paper(self, hm, ks, c, var, rho, th_k, cost, sig) -> dict:
+        """Eq. (37) generalised: one harmonic k; ambiguities resolved by the other harmonics."""
+        k = self.harmonic if self.harmonic is not None else (max(sig) if sig else int(ks.max()))
+        if k not in ks:
+            raise HwidError(f"harmonic {k} is not predicted by h (degree {hm.degree}) or is above Nyquist; "
+                            f"choose one of {ks.tolist()}")
+        j = int(np.flatnonzero(ks == k)[0])
+        ck, vk = c[j], var[j]
+        P = hm.poly(k)
+        unit = 1.0 if np.abs(P.real).sum() >= np.abs(P.imag).sum() else 1j
+        Pr = (P / unit).real                                     # D_k(r) = unit * Pr(r)
+        s = abs(ck)
+        roots = []
+        for sign in (1.0, -1.0):
+            q = Pr.copy()
+            q[0] -= sign * s
+            q = np.trim_zeros(q, "b")
+            if q.size < 2:
+                continue
+            rr = np.polynomial.polynomial.polyroots(q)
+            roots += [float(r.real) for r in rr if abs(r.imag) < 1e-9 * max(1, abs(r)) and r.real > 0]
+        if not roots:
+            raise HwidError(f"harmonic {k}: |D_k(r)| = s_k has no positive root; h does not explain "
+                            f"the measured amplitude {s:.3g}")
+        best = None
+        for r in roots:
+            g = r / rho
+            Dk = hm.D(r, [k])[0]
+            for m in range(k):
+                phi = th_k + (np.angle(Dk) - np.angle(ck) + 2 * np.pi * m) / k
+                cc = cost(g, phi)
+                if best is None or cc < best[0]:
+                    best = (cc, g, phi, r)
+        _, g, phi, r = best
+        dPr = np.polynomial.polynomial.polyval(r, np.polynomial.polynomial.polyder(Pr))
+        var_g = vk / (rho * dPr) ** 2 if dPr != 0 else np.inf
+        var_p = vk / (k ** 2 * s ** 2) if s > 0 else np.inf
+        return {"gain": float(g), "phase": float(phi), "cov": np.diag([var_g, var_p]), "harmonic": int(k),
+                "roots": [r_ / rho for r_ in roots]}
+
+
+# -------------------------------------------------------------------------------------------- results
+
+@dataclass(frozen=True)
+class LinearResult:
+    """Stage 2 result: the frequency response estimates, their intervals, the bound and the
+    parametric model. Plain data; ``to_dict()`` feeds both the JSON and the HDF5 writers.
+
+    ``phase`` is ``phi(omega) = -arg G(j omega)`` in rad (Table 2), unwrapped across frequency
+    from the principal value at the lowest one. ``crlb_gain``/``crlb_phase`` are *variance* bounds.
+    """
+
+    frequencies: np.ndarray
+    amplitude: float
+    gain: np.ndarray
+    gain_ci: np.ndarray          # (n, 2)
+    phase: np.ndarray
+    phase_ci: np.ndarray
+    cov: np.ndarray              # (n, 2, 2) of (gain, phase)
+    method: str
+    crlb_gain: np.ndarray
+    crlb_phase: np.ndarray
+    parametric: dict
+    harmonics: tuple             # per frequency: dict (HarmonicFit.to_dict() + model + estimates)
+    extrapolated: np.ndarray
+    warnings: tuple[str, ...] = ()
+    precompensator: str = "auto"
+
+    @property
+    def response(self) -> np.ndarray:
+        """``G_hat(j omega) = |G| e^{-j phi}``."""
+        return self.gain * np.exp(-1j * self.phase)
+
+    def to_dict(self, full: bool = False) -> dict:
+        """Plain Python data (JSON). ``full`` adds the per-frequency harmonic fits (HDF5)."""
+        lst = lambda a: np.asarray(a, float).tolist()  # noqa: E731
+        d = {"frequencies": lst(self.frequencies), "amplitude": float(self.amplitude),
+             "gain": lst(self.gain), "gain_ci": lst(self.gain_ci), "phase": lst(self.phase),
+             "phase_ci": lst(self.phase_ci), "gain_se": lst(np.sqrt(self.cov[:, 0, 0])),
+             "phase_se": lst(np.sqrt(self.cov[:, 1, 1])), "method": self.method,
+             "crlb_gain": lst(self.crlb_gain), "crlb_phase": lst(self.crlb_phase),
+             "parametric": _plain(self.parametric), "extrapolated": [bool(x) for x in self.extrapolated],
+             "warnings": list(self.warnings), "precompensator": self.precompensator}
+        if full:
+            d["cov"] = np.asarray(self.cov, float)
+            d["harmonics"] = {str(i): h for i, h in enumerate(self.harmonics)}
+        else:
+            d["estimates"] = [_plain(h.get("estimates", {})) for h in self.harmonics]
+        return d
+
+
+def _plain(x):
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _plain(x.tolist())
+    if isinstance(x, (np.floating, np.integer, np.bool_)):
+        return x.item()
+    if isinstance(x, complex):
+        return [x.real, x.imag]
+    return x
+
+
+def _estimator(cfg) -> LinearEstimator:
+    lc = cfg.identification.linear
+    return LinearEstimator(method=lc.method, harmonic=lc.harmonic,
+                           hold_correction=getattr(lc, "hold_correction", True),
+                           noise_model=getattr(lc, "noise_model", "auto"))
+
+
+def _per_frequency_dict(est: LinearEstimator) -> dict:
+    hf = est.harmonics_.to_dict()
+    hf["predicted_re"] = est.predicted_.real
+    hf["predicted_im"] = est.predicted_.imag
+    hf["used_harmonics"] = est.used_harmonics_.astype(float)
+    hf["significant_harmonics"] = est.significant_harmonics_.astype(float)
+    hf["input_correction"] = [est.input_correction_.real, est.input_correction_.imag]
+    hf["input_distortion"] = est.input_distortion_
+    hf["w_amplitude"] = est.w_amplitude_
+    ests = {}
+    for name, e in est.estimates_.items():
+        if e is None:
+            continue
+        ests[name] = {k: (np.asarray(v, float) if isinstance(v, (np.ndarray, list, tuple)) else v)
+                      for k, v in e.items()}
+    hf["estimates"] = ests
+    return hf
+
+
+def unwrap_phase(omega, phase) -> np.ndarray:
+    """Unwrap ``phi`` across increasing frequency, starting from its principal value (``G(0) = 1``)."""
+    omega = np.asarray(omega, float)
+    phase = np.asarray(phase, float).copy()
+    order = np.argsort(omega)
+    prev = None
+    for i in order:
+        if prev is not None:
+            phase[i] += 2 * np.pi * np.round((prev - phase[i]) / (2 * np.pi))
+        prev = phase[i]
+    return phase
+
+
+def estimate_response(records, sines, nonlinear, cfg=None, estimator: LinearEstimator | None = None,
+                      parametric: bool = True, precompensator: str = "auto") -> LinearResult:
+    """Estimate ``G(j omega_i)`` from sine records already measured (one per ``sines[i]``)."""
+    from hwid.identify.parametric import fit_rational
+    est0 = estimator or (_estimator(cfg) if cfg is not None else LinearEstimator())
+    ests = []
+    for rec, s in zip(records, sines):
+        e = LinearEstimator(**{k: getattr(est0, k) for k in ("method", "harmonic", "k_max", "confidence",
+                                                             "hold_correction", "noise_model")})
+        ests.append(e.fit(rec, s, nonlinear))
+    w = np.array([s.omega for s in sines], float)
+    gain = np.array([e.gain_ for e in ests])
+    phase_raw = np.array([e.phase_ for e in ests])
+    phase = unwrap_phase(w, phase_raw)
+    shift = phase - phase_raw
+    gain_ci = np.array([e.gain_ci_ for e in ests])
+    phase_ci = np.array([e.phase_ci_ for e in ests]) + shift[:, None]
+    cov = np.array([e.cov_ for e in ests])
+    harm = []
+    for e, sh in zip(ests, shift):
+        d = _per_frequency_dict(e)
+        for x in d["estimates"].values():
+            if "phase" in x:
+                x["phase"] = x["phase"] + sh
+                x["phase_ci"] = np.asarray(x["phase_ci"], float) + sh
+        harm.append(d)
+    warns = [m for e in ests for m in e.warnings_]
+    par: dict = {}
+    if parametric and len(sines) >= 1:
+        lc = cfg.identification.linear if cfg is not None else None
+        try:
+            fit = fit_rational(w, gain * np.exp(-1j * phase), cov, gain=gain, phase=phase,
+                               max_order=lc.max_order if lc else 4, fit_delay=lc.fit_delay if lc else False)
+            par = fit.to_dict()
+            warns += list(fit.warnings)
+        except HwidError as err:
+            warns.append(f"parametric fit: {err}")
+            par = {"num": [], "den": [], "delay": 0.0, "error": str(err)}
+    return LinearResult(w, float(sines[0].amplitude), gain, gain_ci, phase, phase_ci, cov, est0.method,
+                        np.array([e.crlb_[0] for e in ests]), np.array([e.crlb_[1] for e in ests]), par,
+                        tuple(harm), np.array([e.extrapolated_ for e in ests]), tuple(warns), precompensator)
+
+
+def run_sines(cfg, nonlinear, plant=None, journal_dir=None, progress: bool | None = None):
+    """Drive the plant with each sine of ``cfg`` through the pre-compensator built from ``nonlinear``
+    (Fig. 8); return ``(sines, records)``."""
+    from hwid import protocols
+    from hwid.plant import make_plant
+    from hwid.progress import Progress
+    if cfg.protocols.sine is None:
+        raise HwidError(f"{cfg.source_path}: protocols.sine is missing; stage 2 needs the sine experiments")
+    sines = protocols.sines(cfg)
+    plant = plant if plant is not None else make_plant(cfg, journal_dir=journal_dir)
+    F = nonlinear.input_nonlinearity()
+    kind = cfg.identification.linear.precompensator
+    records = []
+    with Progress(sum(s.z.size for s in sines), "identify-linear", "samples", enabled=progress) as bar:
+        for s in sines:
+            u = F.precompensator(s.z, kind)
+            r = plant.run(s.name, u, z=s.z)
+            r.attrs.update({"omega": s.omega, "amplitude": s.amplitude, "periods": s.periods,
+                            "lead_in_periods": s.lead_in_periods, "precompensator": "estimated",
+                            "precompensator_kind": kind})
+            records.append(r)
+            bar.update(s.z.size)
+    return sines, records
+
+
+def identify_linear(cfg, nonlinear, plant=None, journal_dir=None, progress: bool | None = None):
+    """Stage 2 end to end: pre-compensated sines, ``G_hat(j omega_i)``, the parametric model.
+
+    Parameters
+    ----------
+    cfg : hwid.config.Config
+    nonlinear : NonlinearLike
+        Stage 1 result (``load_nonlinear(path)`` or :class:`KnownNonlinear`).
+    plant : optional
+        A plant (``run(name, u, z=...)``); default ``make_plant(cfg, journal_dir=journal_dir)``.
+
+    Returns
+    -------
+    (LinearResult, list of Record)
+    """
+    sines, records = run_sines(cfg, nonlinear, plant, journal_dir, progress)
+    res = estimate_response(records, sines, nonlinear, cfg,
+                            precompensator=cfg.identification.linear.precompensator)
+    return res, records
+
+
+# ------------------------------------------------------------------------------------------- storage
+
+def save_linear(path, cfg, result: LinearResult, records=()) -> Path:
+    """Write ``linear.h5`` (hwid_kind ``linear``): the result and the sine records."""
+    from hwid.results import atomic_h5, write_dict, write_provenance, write_records
+    path = Path(path)
+    with atomic_h5(path) as f:
+        write_provenance(f, "linear", cfg)
+        d = result.to_dict(full=True)
+        write_dict(f.require_group("result"), d)
+        if records:
+            write_records(f.require_group("experiments"), records)
+    return path
+
+
+def load_linear(path, cfg=None) -> LinearResult:
+    """Read ``linear.h5`` back into a :class:`LinearResult`."""
+    from hwid.results import ResultsError, open_results, read_dict
+    with open_results(path, "linear", cfg) as f:
+        if "result" not in f:
+            raise ResultsError(f"{path}: has no 'result' group (an interrupted write?)")
+        d = read_dict(f["result"])
+    harm = d.get("harmonics", {})
+    harmonics = tuple(harm[k] for k in sorted(harm, key=int))
+    arr = lambda k: np.asarray(d[k], float)  # noqa: E731
+    par = d.get("parametric", {}) or {}
+    return LinearResult(arr("frequencies"), float(d["amplitude"]), arr("gain"), arr("gain_ci").reshape(-1, 2),
+                        arr("phase"), arr("phase_ci").reshape(-1, 2), arr("cov").reshape(-1, 2, 2),
+                        str(d["method"]), arr("crlb_gain"), arr("crlb_phase"), par, harmonics,
+                        np.asarray(d["extrapolated"], bool), tuple(d.get("warnings", ()) or ()),
+                        str(d.get("precompensator", "auto")))
