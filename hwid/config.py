@@ -169,9 +169,22 @@ class ProtocolsCfg(_Strict):
 
 
 class NonlinearIdCfg(_Strict):
+    """Stage 1 (hwid.identify.nonlinear).
+
+    method: nls (joint weighted least squares, default) | paper (closed form of eqs. 11-14);
+    degree: p of h, or null to select it by BIC up to max_degree;
+    input_type: auto (decide Backlash / Backlash-Inverse from the data, Remark 1.4) | backlash |
+      backlash_inverse (skip the decision when the type is known);
+    alpha: family-wise level of the tests that find the horizontal paths j_a, j_d (per staircase);
+    pool_noise: pool the output noise's long-run variance over all levels (stationary noise).
+    """
+
     method: Literal["nls", "paper"] = "nls"
     degree: Optional[Annotated[int, Field(ge=1, le=15)]] = None
     max_degree: Annotated[int, Field(ge=1, le=15)] = 9
+    input_type: Literal["auto", "backlash", "backlash_inverse"] = "auto"
+    alpha: Annotated[float, Field(gt=0.0, lt=0.5)] = 0.01
+    pool_noise: bool = True
 
 
 class LinearIdCfg(_Strict):

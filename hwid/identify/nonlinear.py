@@ -1,0 +1,836 @@
+"""Stage 1: the output nonlinearity h and the backlash borders from two staircases (paper Section 4).
+
+The data
+--------
+The ascending staircase (eq. 6) and the descending one (eq. 13) are run after their lead-ins
+(:mod:`hwid.protocols`). For each level the steady output ``X_hat_j`` is the mean of ``y`` after the
+transient (eq. 9), with a standard error that holds under coloured noise (:mod:`hwid.identify.steady`).
+
+The model
+---------
+Everything is estimated for the normalised model of eqs. (4a-c) (``slope_up = 1``, ``G(0) = 1``),
+in which the steady output at a level is ``X_j = h_bar(F_bar[U_j])`` (eqs. 5, 8). For a Backlash
+``F_bar`` has the borders ``u - d^+`` and ``S^d/S^a (u - d^-)``. For a Backlash-Inverse the same
+normalisation (``F_bar = S^a F``) gives the branches ``u + S^a d^+`` (ascending) and
+``(S^a/S^d) u + S^a d^-`` (descending); hwid reports it as ``slope_down = S^d/S^a``,
+``d_plus = S^a d^+``, ``d_minus = S^a d^-`` (see :mod:`hwid.model`), so its branches read
+``u + d_plus`` and ``u / slope_down + d_minus``.
+
+In both cases the two branches are straight lines ``asc(u) = u - a`` and
+``desc(u) = sigma (u - b)``, with ``(a, sigma, b) = (d^+, S^d, d^-)`` for a Backlash and
+``(-d^+, 1/S^d, -S^d d^-)`` for a Backlash-Inverse; the paper's closed-form route works on
+``(a, sigma, b)`` and maps back.
+
+The estimator (:class:`NonlinearEstimator`)
+-------------------------------------------
+1. Steady states and standard errors of all levels.
+2. ``j_a``, ``j_d`` (eqs. 7a, 14a) by sequential tests: a level belongs to the horizontal path while
+   it equals the path's weighted mean within a Bonferroni-corrected two-sided z test (family level
+   ``alpha`` per staircase). The descending path is referred to the last ascending level, whose
+   steady state ``h(U_N - d^+)`` is the one the descending lead-in leaves. A staircase that never
+   leaves the path means ``[u_m, u_M]`` is too narrow (Section 3, Fig. 6a): :class:`HwidError`.
+3. The paper's route (eqs. 11-14): a weighted polynomial fit ``q(u) = h_bar(u - d^+)`` on the
+   ascending border points in numpy's domain-scaled basis; ``d^+`` from a real root of ``q``
+   (Remark 1.3: ``h^-1(0) = 0``), the root being the one whose whole model fits both staircases
+   best; ``h_bar(w) = q(w + d^+)`` (eq. 12); on the descending border a fit ``r(u) = h_bar(S^d(u - d^-))``
+   gives ``S^d = (r_p / c_p)^(1/p)`` from the leading coefficients and ``d^-`` from ``r``'s root
+   (eq. 14).
+4. ``method='nls'`` (default): all parameters ``(c_1..c_p, d^+, S^d, d^-)`` refined jointly by
+   weighted least squares on both staircases, the model being ``h_bar`` of the steady-state
+   recursion of ``F_bar`` over all levels including the lead-in, so which levels lie on the flat
+   path or on a border follows the parameters. Started from step 3.
+5. Degree ``p`` and type (Backlash / Backlash-Inverse, Remark 1.4) by BIC of the joint fit
+   ``chi^2 + k ln n``, ``p`` limited by eq. (11) (``N - j_a >= p + 1``); a configured degree
+   overrides the selection.
+6. 95 % intervals from the covariance ``(J^T W J)^-1`` (nls) or from the delta method through the
+   closed form (paper), with t quantiles on the noise's degrees of freedom.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+from numpy.polynomial import Polynomial
+from scipy import optimize, stats
+
+from hwid import HwidError
+from hwid.identify.steady import SteadyLevels, steady_levels
+from hwid.model import InputNonlinearity
+
+TYPES = ("backlash", "backlash_inverse")
+_NEG = -1e300   # a gear state below every border: the first lead-in level puts it on the ascending one
+
+
+class NonlinearIdentificationError(HwidError):
+    """Stage 1 cannot proceed with these data (narrow working interval, too few levels, ...)."""
+
+
+# ----------------------------------------------------------------------------------------- result
+
+@dataclass(frozen=True)
+class NonlinearResult:
+    """Stage-1 estimates for the normalised model of eqs. (4a-c): ``slope_up = 1``, ``G(0) = 1``.
+
+    ``ci`` maps each estimate to its 95 % interval: ``slope_down``, ``d_plus``, ``d_minus`` to
+    ``(lo, hi)``, ``h_coefficients`` and ``X_hat`` to lists of pairs. ``cov`` is the covariance of
+    ``param_names`` = ``(c1..cp, d_plus, slope_down, d_minus)``. ``levels``, ``X_hat``,
+    ``X_hat_se`` hold the ascending staircase's levels then the descending one's (``fit['n_up']``
+    of them ascending).
+    """
+
+    type: str
+    slope_up: float
+    slope_down: float
+    d_plus: float
+    d_minus: float
+    h_coefficients: tuple[float, ...]
+    degree: int
+    w_range: tuple[float, float]
+    ci: dict
+    cov: np.ndarray
+    param_names: tuple[str, ...]
+    levels: tuple[float, ...]
+    X_hat: tuple[float, ...]
+    X_hat_se: tuple[float, ...]
+    flat_up: int
+    flat_down: int
+    method: str
+    evidence: str
+    warnings: tuple[str, ...]
+    fit: dict = field(default_factory=dict)   # diagnostics: chi2, dof, n_up, selection table, ...
+
+    def input_nonlinearity(self) -> InputNonlinearity:
+        """The normalised ``F_bar`` (eq. 4a) as an :class:`hwid.model.InputNonlinearity`."""
+        return InputNonlinearity(self.type, 1.0, self.slope_down, self.d_plus, self.d_minus)
+
+    def h(self, w) -> np.ndarray:
+        """``h_bar(w)`` (eq. 4c), ascending-power coefficients ``h_coefficients``."""
+        return np.polynomial.polynomial.polyval(np.asarray(w, float), self.h_coefficients)
+
+    def to_dict(self) -> dict:
+        """Plain data for JSON and HDF5 (the ``--json`` summary of ``hwid identify-nonlinear``)."""
+        d: dict[str, Any] = {
+            "type": self.type, "slope_up": self.slope_up, "slope_down": self.slope_down,
+            "d_plus": self.d_plus, "d_minus": self.d_minus,
+            "h_coefficients": list(self.h_coefficients), "degree": self.degree,
+            "levels": list(self.levels), "X_hat": list(self.X_hat), "X_hat_se": list(self.X_hat_se),
+            "flat_up": self.flat_up, "flat_down": self.flat_down,
+            "n_up": int(self.fit.get("n_up", len(self.levels))),
+        }
+        for key, val in self.ci.items():
+            d[f"{key}_ci"] = [list(v) for v in val] if key in ("h_coefficients", "X_hat") else list(val)
+        d.update({"evidence": self.evidence, "warnings": list(self.warnings), "method": self.method,
+                  "w_range": list(self.w_range), "param_names": list(self.param_names),
+                  "cov": np.asarray(self.cov).tolist()})
+        d["fit"] = {k: v for k, v in self.fit.items()}
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "NonlinearResult":
+        """Inverse of :meth:`to_dict`."""
+        def pairs(v):
+            return [tuple(float(x) for x in p) for p in np.asarray(v, float).reshape(-1, 2)]
+        ci = {}
+        for key in ("slope_up", "slope_down", "d_plus", "d_minus"):
+            if f"{key}_ci" in d:
+                ci[key] = tuple(float(x) for x in np.ravel(d[f"{key}_ci"]))
+        for key in ("h_coefficients", "X_hat"):
+            if f"{key}_ci" in d:
+                ci[key] = pairs(d[f"{key}_ci"])
+        tup = lambda v: tuple(float(x) for x in np.ravel(v))  # noqa: E731
+        return cls(type=str(d["type"]), slope_up=float(d["slope_up"]), slope_down=float(d["slope_down"]),
+                   d_plus=float(d["d_plus"]), d_minus=float(d["d_minus"]),
+                   h_coefficients=tup(d["h_coefficients"]), degree=int(d["degree"]),
+                   w_range=tup(d["w_range"]), ci=ci, cov=np.asarray(d["cov"], float),
+                   param_names=tuple(str(x) for x in d["param_names"]), levels=tup(d["levels"]),
+                   X_hat=tup(d["X_hat"]), X_hat_se=tup(d["X_hat_se"]), flat_up=int(d["flat_up"]),
+                   flat_down=int(d["flat_down"]), method=str(d["method"]), evidence=str(d["evidence"]),
+                   warnings=tuple(str(w) for w in (d.get("warnings") or [])), fit=dict(d.get("fit") or {}))
+
+
+# ----------------------------------------------------------------------------------- the model
+
+@dataclass(frozen=True)
+class _Data:
+    """The steady-state points of both staircases, with the level sequences the model needs."""
+
+    all_up: np.ndarray       # lead-in + ascending levels
+    all_down: np.ndarray     # lead-in + descending levels
+    lead_up: int
+    lead_down: int
+    X: np.ndarray            # X_hat, ascending then descending
+    se: np.ndarray
+
+    @property
+    def up(self) -> np.ndarray:
+        return self.all_up[self.lead_up:]
+
+    @property
+    def down(self) -> np.ndarray:
+        return self.all_down[self.lead_down:]
+
+    @property
+    def n_up(self) -> int:
+        return self.up.size
+
+    @property
+    def U(self) -> np.ndarray:
+        return np.concatenate([self.up, self.down])
+
+    def with_X(self, X) -> "_Data":
+        return _Data(self.all_up, self.all_down, self.lead_up, self.lead_down, np.asarray(X, float), self.se)
+
+
+def _internal(kind: str, d_plus: float, slope_down: float, d_minus: float, data: _Data) -> np.ndarray:
+    """Steady ``V_j = F_bar[U_j]`` of both staircases (eqs. 7a-b, 14a-b) from the lead-in on."""
+    f = InputNonlinearity(kind, 1.0, slope_down, d_plus, d_minus)
+    state = _NEG if kind == "backlash" else 0.0
+    vu = f.steady(data.all_up, state)[data.lead_up:]
+    vd = f.steady(data.all_down, state)[data.lead_down:]
+    return np.concatenate([vu, vd])
+
+
+def _predict(kind: str, theta: np.ndarray, data: _Data) -> np.ndarray:
+    """``X_j(theta) = h_bar(F_bar[U_j])`` with ``theta = (c_1..c_p, d^+, S^d, d^-)``."""
+    c = np.concatenate([[0.0], theta[:-3]])
+    v = _internal(kind, theta[-3], theta[-2], theta[-1], data)
+    return np.polynomial.polynomial.polyval(v, c)
+
+
+def _chi2(kind: str, theta: np.ndarray, data: _Data) -> float:
+    if not (theta[-2] > 0 and theta[-3] >= theta[-1] and np.all(np.isfinite(theta))):
+        return np.inf
+    r = (data.X - _predict(kind, theta, data)) / data.se
+    return float(r @ r)
+
+
+def _from_generic(kind: str, a: float, sigma: float, b: float) -> tuple[float, float, float]:
+    """``(a, sigma, b)`` of ``asc = u - a``, ``desc = sigma (u - b)`` to ``(d^+, S^d, d^-)``."""
+    if kind == "backlash":
+        return a, sigma, b
+    return -a, 1.0 / sigma, -sigma * b
+
+
+# ------------------------------------------------------------------------- flat path (j_a, j_d)
+
+def _flat_run(x, se, ref_x: list, ref_se: list, alpha: float) -> tuple[int, list[float]]:
+    """Number of leading points of ``x`` that stay on the horizontal path started by ``ref``.
+
+    Each point is compared with the weighted mean of the path so far by a two-sided z test at the
+    Bonferroni level ``alpha / len(x)``."""
+    zc = stats.norm.isf(alpha / (2 * max(len(x), 1)))
+    mx, ms = list(ref_x), list(ref_se)
+    zs: list[float] = []
+    for xj, sj in zip(x, se):
+        w = 1.0 / np.asarray(ms) ** 2
+        m = float(np.sum(w * np.asarray(mx)) / np.sum(w))
+        sm = float(np.sqrt(1.0 / np.sum(w)))
+        z = (xj - m) / math.hypot(sj, sm)
+        zs.append(float(z))
+        if abs(z) > zc:
+            return len(mx) - len(ref_x), zs
+        mx.append(xj)
+        ms.append(sj)
+    return len(mx) - len(ref_x), zs
+
+
+# ----------------------------------------------------------------------------- the paper's route
+
+class _TooFew(Exception):
+    pass
+
+
+def _polyfit(u, x, se, p: int) -> tuple[np.ndarray, float]:
+    """Weighted LS polynomial of degree ``p`` in numpy's domain-scaled basis; power coefficients."""
+    q = Polynomial.fit(u, x, p, w=1.0 / se)
+    r = (x - q(u)) / se
+    c = q.convert().coef
+    return np.pad(c, (0, p + 1 - c.size)), float(r @ r)
+
+
+def _real_roots(c: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    c = np.trim_zeros(np.asarray(c, float), "b")
+    if c.size < 2:
+        return np.array([])
+    rts = np.roots(c[::-1])
+    scale = max(1.0, hi - lo)
+    real = rts[np.abs(rts.imag) <= 1e-6 * scale + 1e-3 * np.abs(rts)].real
+    return np.sort(real[(real >= lo) & (real <= hi)])
+
+
+def _asc_index(kind: str, j_a: int, n_up: int) -> np.ndarray:
+    # with the lead-in, the first ascending level sits on the descending branch for both types
+    return np.arange(j_a if kind == "backlash" else 1, n_up)
+
+
+def _desc_index(kind: str, j_d: int, n_down: int) -> np.ndarray:
+    return np.arange(j_d if kind == "backlash" else 0, n_down)
+
+
+def _descending(hc: np.ndarray, p: int, u, x, se) -> tuple[float, float, str]:
+    """``(sigma, b)`` of ``r(u) = h_bar(sigma (u - b))`` on the descending border (eq. 14).
+
+    Closed form: ``sigma = (r_p / c_p)^(1/p)``; ``b`` among the real roots of ``r`` and the value
+    from the next coefficient, the one that fits best. If the closed form is impossible (too few
+    points or a leading-coefficient ratio <= 0), a 2-parameter least-squares fit."""
+    h = Polynomial(hc)
+
+    def sse(sig, b):
+        r = (x - h(sig * (u - b))) / se
+        return float(r @ r)
+
+    span = float(np.ptp(u)) if u.size > 1 else 1.0
+    lo, hi = float(u.min()) - 2 * span - 1.0, float(u.max()) + 2 * span + 1.0
+    if u.size >= p + 1 and hc[p] != 0:
+        rc, _ = _polyfit(u, x, se, p)
+        ratio = rc[p] / hc[p]
+        if ratio > 0:
+            sig = ratio ** (1.0 / p)
+            cands = list(_real_roots(rc, lo, hi))
+            if p >= 1:
+                # r_{p-1} = c_p sig^p (-p b) + c_{p-1} sig^{p-1}
+                cands.append((hc[p - 1] * sig ** (p - 1) - rc[p - 1]) / (p * hc[p] * sig ** p))
+            if cands:
+                b = min(cands, key=lambda bb: sse(sig, bb))
+                return float(sig), float(b), "closed form"
+    if u.size < 2:
+        raise _TooFew("descending")
+    grid = np.linspace(lo, hi, 61)
+    best = sorted(grid, key=lambda bb: sse(1.0, bb))[:2]
+    out = []
+    hp = np.polynomial.polynomial.polyval
+    for b0 in best:
+        r = optimize.least_squares(lambda t: (x - hp(math.exp(min(t[0], 50.0)) * (u - t[1]), hc)) / se, [0.0, b0],
+                                   method="lm" if u.size >= 2 else "trf", max_nfev=300)
+        out.append((2 * r.cost, float(np.exp(r.x[0])), float(r.x[1])))
+    _, sig, b = min(out)
+    return sig, b, "least squares (closed form not available)"
+
+
+@dataclass
+class _Route:
+    theta: np.ndarray      # (c_1..c_p, d^+, S^d, d^-)
+    a: float               # the root of q taken as d^+ (generic)
+    chi2: float
+    desc_note: str
+
+
+def _paper_route(kind: str, p: int, data: _Data, j_a: int, j_d: int,
+                 a_ref: Optional[float] = None) -> list[_Route]:
+    """Candidates of the closed-form route (eqs. 11-14), best joint chi^2 first.
+
+    ``a_ref`` (delta method) keeps the candidate root closest to a previous choice."""
+    n_up = data.n_up
+    ia = _asc_index(kind, j_a, n_up)
+    idn = _desc_index(kind, j_d, data.down.size) + n_up
+    if ia.size < p + 1:
+        raise _TooFew("ascending")
+    u, x, se = data.U[ia], data.X[ia], data.se[ia]
+    qc, _ = _polyfit(u, x, se, p)
+    U = data.U
+    span = float(np.ptp(U))
+    roots = _real_roots(qc, float(U.min()) - span, float(U.max()) + span)
+    if roots.size == 0:
+        grid = np.linspace(U.min() - span, U.max() + span, 2001)
+        roots = np.array([grid[np.argmin(np.abs(Polynomial(qc)(grid)))]])
+    if a_ref is not None:
+        roots = roots[[int(np.argmin(np.abs(roots - a_ref)))]]
+    out = []
+    for a in roots:
+        hc = Polynomial(qc)(Polynomial([a, 1.0])).coef      # h_bar(w) = q(w + a), eq. (12)
+        hc = np.pad(hc, (0, p + 1 - hc.size))
+        hc[0] = 0.0
+        try:
+            sig, b, note = _descending(hc, p, data.U[idn], data.X[idn], data.se[idn])
+        except _TooFew:
+            raise
+        dp, sd, dm = _from_generic(kind, float(a), sig, b)
+        theta = np.concatenate([hc[1:], [dp, sd, dm]])
+        out.append(_Route(theta, float(a), _chi2(kind, theta, data), note))
+    out.sort(key=lambda r: r.chi2)
+    return out
+
+
+# ------------------------------------------------------------------------------ joint NLS
+
+def _nls(kind: str, theta0: np.ndarray, data: _Data) -> tuple[np.ndarray, float]:
+    """Weighted nonlinear least squares of all parameters on both staircases, from ``theta0``.
+
+    Levenberg-Marquardt on ``(c_1..c_p, d^+, ln S^d, ln(d^+ - d^-))``, so that ``S^d > 0`` and
+    ``d^+ > d^-`` hold without bounds."""
+    p = theta0.size - 3
+
+    def to_theta(z):
+        return np.concatenate([z[:p], [z[p], math.exp(min(z[p + 1], 50.0)), z[p] - math.exp(min(z[p + 2], 50.0))]])
+
+    def fun(z):
+        return (data.X - _predict(kind, to_theta(z), data)) / data.se
+
+    z0 = np.concatenate([theta0[:p], [theta0[-3], math.log(max(theta0[-2], 1e-6)),
+                                      math.log(max(theta0[-3] - theta0[-1], 1e-6))]])
+    try:
+        r = optimize.least_squares(fun, z0, method="lm", x_scale="jac", xtol=1e-10, ftol=1e-10, gtol=1e-10,
+                                   max_nfev=60 * (p + 4))
+    except ValueError:
+        return theta0, np.inf
+    th = to_theta(r.x)
+    return th, _chi2(kind, th, data)
+
+
+def _jacobian(f, theta: np.ndarray, rel: float = 1e-6) -> np.ndarray:
+    """Central differences of ``f`` at ``theta``."""
+    cols = []
+    for i in range(theta.size):
+        h = rel * max(1.0, abs(theta[i]))
+        tp, tm = theta.copy(), theta.copy()
+        tp[i] += h
+        tm[i] -= h
+        cols.append((np.asarray(f(tp)) - np.asarray(f(tm))) / (2 * h))
+    return np.column_stack(cols)
+
+
+def _nls_cov(kind: str, theta: np.ndarray, data: _Data) -> np.ndarray:
+    """``(J^T W J)^-1`` at the estimate (J of the weighted residuals)."""
+    J = _jacobian(lambda t: _predict(kind, t, data) / data.se, theta)
+    return np.linalg.pinv(J.T @ J, rcond=1e-13)
+
+
+# ------------------------------------------------------------------------------- the estimator
+
+@dataclass
+class _Candidate:
+    kind: str
+    p: int
+    theta: np.ndarray
+    chi2: float
+    bic: float
+    route: Optional[_Route] = None
+
+
+class NonlinearEstimator:
+    """Stage-1 estimator (Section 4) in the scikit-learn manner.
+
+    Parameters
+    ----------
+    method : {"nls", "paper"}
+        ``"nls"``: joint weighted nonlinear least squares started from the closed form;
+        ``"paper"``: the closed-form route of eqs. (11-14) only.
+    degree : int, optional
+        Degree ``p`` of ``h``; selected by BIC when None.
+    max_degree : int
+        Highest degree tried by the selection.
+    input_type : {"auto", "backlash", "backlash_inverse"}
+        Type of F; decided from the data when "auto" (Remark 1.4).
+    alpha : float
+        Family-wise level of the flat-path tests per staircase (j_a, j_d).
+    pool_noise : bool
+        Pool the long-run noise variance over levels (stationary noise).
+    confidence : float
+        Level of the reported intervals.
+
+    Attributes (after ``fit``)
+    --------------------------
+    result_ : NonlinearResult
+    steady_ : hwid.identify.steady.SteadyLevels
+    type_, degree_, d_plus_, slope_down_, d_minus_, h_coef_, flat_up_, flat_down_, selection_
+    """
+
+    def __init__(self, method: str = "nls", degree: Optional[int] = None, max_degree: int = 9,
+                 input_type: str = "auto", alpha: float = 0.01, pool_noise: bool = True,
+                 confidence: float = 0.95):
+        self.method = method
+        self.degree = degree
+        self.max_degree = max_degree
+        self.input_type = input_type
+        self.alpha = alpha
+        self.pool_noise = pool_noise
+        self.confidence = confidence
+
+    @classmethod
+    def from_config(cls, cfg) -> "NonlinearEstimator":
+        """Settings from ``cfg.identification.nonlinear``."""
+        n = cfg.identification.nonlinear
+        return cls(method=n.method, degree=n.degree, max_degree=n.max_degree,
+                   input_type=getattr(n, "input_type", "auto"), alpha=getattr(n, "alpha", 0.01),
+                   pool_noise=getattr(n, "pool_noise", True))
+
+    # -------------------------------------------------------------------------------- fit
+    def _check_settings(self):
+        if self.method not in ("nls", "paper"):
+            raise ValueError(f"method must be 'nls' or 'paper', got {self.method!r}")
+        if self.input_type not in ("auto",) + TYPES:
+            raise ValueError(f"input_type must be 'auto', 'backlash' or 'backlash_inverse', got {self.input_type!r}")
+        if self.degree is not None and not (isinstance(self.degree, (int, np.integer)) and self.degree >= 1):
+            raise ValueError(f"degree must be a positive integer or None, got {self.degree!r}")
+        if not (isinstance(self.max_degree, (int, np.integer)) and self.max_degree >= 1):
+            raise ValueError(f"max_degree must be a positive integer, got {self.max_degree!r}")
+        if not 0 < self.alpha < 1 or not 0 < self.confidence < 1:
+            raise ValueError("alpha and confidence must lie in (0, 1)")
+
+    @staticmethod
+    def _segments(record, stair, label):
+        y = np.asarray(record.y, float)
+        if y.ndim != 1 or y.size != stair.u.size:
+            raise NonlinearIdentificationError(
+                f"the {label} staircase record has {y.size} samples but the staircase has {stair.u.size}; "
+                "the data do not belong to this config's protocols.staircase")
+        u = getattr(record, "u", None)
+        if u is not None and (np.shape(u) != stair.u.shape or not np.allclose(u, stair.u)):
+            raise NonlinearIdentificationError(
+                f"the {label} staircase record's input differs from this config's protocols.staircase")
+        if not np.all(np.isfinite(y)):
+            raise NonlinearIdentificationError(f"the {label} staircase output contains NaN or inf")
+        return [y[a:b] for a, b in zip(stair.starts, stair.stops)], list(stair.starts)
+
+    def fit(self, up_record, down_record, up_staircase, down_staircase) -> "NonlinearEstimator":
+        """Identify h and the borders from the two staircase records (Section 4)."""
+        self._check_settings()
+        warns: list[str] = []
+        su, ou = self._segments(up_record, up_staircase, "ascending")
+        sd, od = self._segments(down_record, down_staircase, "descending")
+        try:
+            st = steady_levels(su + sd, offsets=ou + od, pool=self.pool_noise)
+        except ValueError as err:
+            raise NonlinearIdentificationError(f"{err} (protocols.staircase.hold)") from None
+        warns += st.warnings
+        self.steady_ = st
+        n_up, n_dn = len(su), len(sd)
+        data = _Data(np.asarray(up_staircase.all_levels, float), np.asarray(down_staircase.all_levels, float),
+                     len(up_staircase.lead_in), len(down_staircase.lead_in), st.mean.copy(), st.se.copy())
+        Xu, Xd, eu, ed = data.X[:n_up], data.X[n_up:], data.se[:n_up], data.se[n_up:]
+
+        # j_a, j_d: the horizontal paths (eqs. 7a, 14a)
+        ja_extra, zu = _flat_run(Xu[1:], eu[1:], [Xu[0]], [eu[0]], self.alpha)
+        j_a = 1 + ja_extra
+        j_d, zd = _flat_run(Xd, ed, [Xu[-1]], [eu[-1]], self.alpha)
+        lo, hi = float(min(data.U.min(), data.all_up.min())), float(max(data.U.max(), data.all_up.max()))
+        if j_a >= n_up:
+            raise NonlinearIdentificationError(
+                f"the output never leaves the horizontal path on the ascending staircase (all {n_up} levels give "
+                f"the same steady output within noise): the working interval [u_m, u_M] = [{lo:g}, {hi:g}] is too "
+                "narrow to reach the backlash borders (Section 3, Fig. 6a); widen protocols.staircase levels")
+        if j_d >= n_dn:
+            raise NonlinearIdentificationError(
+                f"the output never leaves the horizontal path on the descending staircase (all {n_dn} levels give "
+                f"the same steady output within noise): the working interval [u_m, u_M] = [{lo:g}, {hi:g}] is too "
+                "narrow to reach the descending border (Section 3, Fig. 6a); widen protocols.staircase levels")
+
+        n_border_up = n_up - j_a if j_a > 1 else n_up - 1
+        n_border_dn = n_dn - j_d
+        if n_border_up < 2:
+            raise NonlinearIdentificationError(
+                f"only {n_border_up} ascending level(s) lie on the border (N - j_a = {n_up} - {j_a}): eq. (11) "
+                "needs at least p + 1 >= 2; add levels above the horizontal path")
+        if n_border_dn < 2:
+            raise NonlinearIdentificationError(
+                f"only {n_border_dn} descending level(s) lie on the border ({n_dn} levels, j_d = {j_d}): at least "
+                "2 are needed for S^d and d^- (eq. 14); add levels below the horizontal path")
+        pmax_up = n_border_up - 1
+        if self.degree is not None:
+            p = int(self.degree)
+            if p > pmax_up:
+                raise NonlinearIdentificationError(
+                    f"the ascending staircase has N - j_a = {n_border_up} levels on the border, too few for degree "
+                    f"{p}: eq. (11) needs N - j_a >= p + 1 = {p + 1}; add levels or lower "
+                    "identification.nonlinear.degree")
+            if p > n_border_dn - 1:
+                msg = (f"the descending staircase has {n_border_dn} levels on the border, fewer than p + 1 = {p + 1} "
+                       "(eq. 11 applied to eq. 14)")
+                if self.method == "paper":
+                    raise NonlinearIdentificationError(msg + ": the closed form cannot fit r(u); add levels, lower "
+                                                       "the degree or use method: nls")
+                warns.append(msg + ": S^d and d^- rest on the joint fit")
+            degrees = [p]
+        else:
+            top = min(self.max_degree, pmax_up)
+            if self.method == "paper":
+                top = min(top, n_border_dn - 1)
+                if top < 1:
+                    raise NonlinearIdentificationError(
+                        "too few border levels on the descending staircase for the closed form; use method: nls")
+            degrees = list(range(1, top + 1))
+
+        kinds = list(TYPES) if self.input_type == "auto" else [self.input_type]
+        n = data.X.size
+        table: list[_Candidate] = []
+        for kind in kinds:
+            for p in degrees:
+                try:
+                    routes = _paper_route(kind, p, data, j_a, j_d)
+                except _TooFew:
+                    continue
+                if self.method == "paper":
+                    best = routes[0]
+                    theta, chi2 = best.theta, best.chi2
+                    # the closed form is judged on the ascending fit, as the paper does
+                    ia = _asc_index(kind, j_a, n_up)
+                    _, chi2_sel = _polyfit(data.U[ia], data.X[ia], data.se[ia], p)
+                    crit = chi2_sel + (p + 1) * math.log(max(ia.size, 2))
+                    table.append(_Candidate(kind, p, theta, chi2, crit, best))
+                else:
+                    fits = [_nls(kind, r.theta, data) for r in routes[:3]]
+                    theta, chi2 = min(fits, key=lambda t: t[1])
+                    table.append(_Candidate(kind, p, theta, chi2, chi2 + (p + 3) * math.log(n),
+                                            routes[0]))
+        if not table:
+            raise NonlinearIdentificationError("no model could be fitted to the staircase data")
+
+        # type: the best of each kind by the joint chi^2 and BIC; degree: BIC within the chosen kind
+        per_kind = {}
+        for kind in kinds:
+            cands = [c for c in table if c.kind == kind and np.isfinite(c.chi2)]
+            if cands:
+                per_kind[kind] = min(cands, key=lambda c: c.bic)
+        if not per_kind:
+            raise NonlinearIdentificationError("every fit of the staircase data failed (non-finite chi-square)")
+        if self.method == "paper":
+            # for the type decision the closed forms are compared by the joint chi^2 they leave
+            kind = min(per_kind, key=lambda k: per_kind[k].chi2 + (per_kind[k].p + 3) * math.log(n))
+        else:
+            kind = min(per_kind, key=lambda k: per_kind[k].bic)
+        best = per_kind[kind]
+        p = best.p
+        theta = best.theta
+        if self.degree is None and p == pmax_up and p < self.max_degree:
+            warns.append(f"the selected degree p = {p} is the highest the N - j_a = {n_border_up} ascending border "
+                         "levels support (eq. 11); a higher degree could not be tested: add levels to check it")
+
+        # covariance
+        dof = n - (p + 3)
+        if self.method == "nls":
+            cov = _nls_cov(kind, theta, data)
+        else:
+            cov = self._paper_cov(kind, p, data, j_a, j_d, best.route.a)
+        chi2 = _chi2(kind, theta, data)
+        gof_p = float(stats.chi2.sf(chi2, dof)) if dof > 0 else float("nan")
+        if self.method == "nls" and dof > 0 and gof_p < 1e-3:
+            warns.append(f"the model does not fit the staircase data within their standard errors (chi2 = {chi2:.4g} "
+                         f"for {dof} dof, p = {gof_p:.1g}): h may not be a polynomial of degree <= {p} on this range, "
+                         "or a level did not settle; intervals are widened by sqrt(chi2/dof)")
+            cov = cov * (chi2 / dof)
+
+        # evidence for the type (Remark 1.4)
+        evidence = self._evidence(kind, per_kind, j_a, zu, n, Xu, eu)
+        if len(per_kind) == 2:
+            other = [k for k in per_kind if k != kind][0]
+            dbic = per_kind[other].bic - per_kind[kind].bic if self.method == "nls" else \
+                per_kind[other].chi2 - per_kind[kind].chi2
+            if dbic < 10:
+                warns.append(f"the data barely distinguish Backlash from Backlash-Inverse (delta = {dbic:.3g} < 10); "
+                             "widen the working interval or add levels")
+
+        # flat paths reported: the tests (Backlash); none for a Backlash-Inverse (Remark 1.4)
+        V = _internal(kind, theta[-3], theta[-2], theta[-1], data)
+        if kind == "backlash":
+            flat_up, flat_down = j_a, j_d
+            ja_model = int(np.sum(np.isclose(V[:n_up], V[0], rtol=0, atol=1e-12)))
+            jd_model = int(np.sum(np.isclose(V[n_up:], self._v_top(kind, theta, data), rtol=0, atol=1e-12)))
+            if (ja_model, jd_model) != (j_a, j_d):
+                warns.append(f"the tests put j_a = {j_a}, j_d = {j_d}; the fitted borders put j_a = {ja_model}, "
+                             f"j_d = {jd_model} (a level lies within noise of the horizontal path)")
+        else:
+            flat_up, flat_down = 0, 0
+
+        self.result_ = self._result(kind, p, theta, cov, data, st, flat_up, flat_down, V, evidence, warns,
+                                    {"chi2": chi2, "dof": dof, "gof_p": gof_p, "n_up": n_up,
+                                     "j_a_test": j_a, "j_d_test": j_d,
+                                     "noise_lrv": st.lrv, "noise_df": st.df, "noise_batches": st.n_batches,
+                                     "first_sample": st.first.tolist(), "n_averaged": st.n.tolist(),
+                                     "selection": [{"type": c.kind, "degree": c.p, "chi2": c.chi2,
+                                                    "criterion": c.bic} for c in table]})
+        r = self.result_
+        self.type_, self.degree_ = r.type, r.degree
+        self.d_plus_, self.slope_down_, self.d_minus_ = r.d_plus, r.slope_down, r.d_minus
+        self.h_coef_ = np.asarray(r.h_coefficients)
+        self.flat_up_, self.flat_down_ = r.flat_up, r.flat_down
+        self.selection_ = table
+        return self
+
+    @staticmethod
+    def _v_top(kind, theta, data):
+        f = InputNonlinearity(kind, 1.0, theta[-2], theta[-3], theta[-1])
+        return float(f.ascending(data.all_down[data.lead_down - 1]))
+
+    def _paper_cov(self, kind, p, data, j_a, j_d, a) -> np.ndarray:
+        """Delta method through the closed form: ``J diag(se^2) J^T`` with ``J = d theta / d X_hat``."""
+        def theta_of(X):
+            return _paper_route(kind, p, data.with_X(X), j_a, j_d, a_ref=a)[0].theta
+        J = []
+        for k in range(data.X.size):
+            h = 1e-3 * data.se[k]
+            Xp, Xm = data.X.copy(), data.X.copy()
+            Xp[k] += h
+            Xm[k] -= h
+            J.append((theta_of(Xp) - theta_of(Xm)) / (2 * h))
+        J = np.column_stack(J)
+        return J @ np.diag(data.se ** 2) @ J.T
+
+    def _evidence(self, kind, per_kind, j_a, zu, n, Xu, eu) -> str:
+        parts = []
+        if j_a >= 2:
+            x, s = Xu[:j_a], eu[:j_a]
+            w = 1 / s ** 2
+            m = np.sum(w * x) / np.sum(w)
+            q = float(np.sum(w * (x - m) ** 2))
+            pv = float(stats.chi2.sf(q, j_a - 1))
+            parts.append(f"X_1..X_{j_a} of the ascending staircase lie on one horizontal path (homogeneity "
+                         f"chi2 = {q:.3g} on {j_a - 1} dof, p = {pv:.2g}), which only a Backlash produces")
+        else:
+            parts.append(f"no horizontal path: X_2 differs from X_1 (z = {zu[0]:.3g})" if zu else "no horizontal path")
+        fits = "; ".join(f"{k}: chi2 = {c.chi2:.4g} for {n - c.p - 3} dof at degree {c.p}"
+                         for k, c in per_kind.items())
+        parts.append(f"joint fit {fits}")
+        if len(per_kind) == 2:
+            other = [k for k in per_kind if k != kind][0]
+            if self.method == "nls":
+                parts.append(f"BIC prefers {kind} by {per_kind[other].bic - per_kind[kind].bic:.4g}")
+            else:
+                parts.append(f"the closed form's joint chi2 prefers {kind} by "
+                             f"{per_kind[other].chi2 - per_kind[kind].chi2:.4g}")
+        else:
+            parts.append(f"type fixed to {kind} by identification.nonlinear.input_type")
+        return f"{kind}: " + "; ".join(parts)
+
+    def _result(self, kind, p, theta, cov, data, st: SteadyLevels, flat_up, flat_down, V, evidence, warns, fit):
+        df = max(int(st.df), 1)
+        tq = float(stats.t.ppf(0.5 + self.confidence / 2, df))
+        sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        names = tuple(f"c{i}" for i in range(1, p + 1)) + ("d_plus", "slope_down", "d_minus")
+        iv = {nm: (float(theta[i] - tq * sd[i]), float(theta[i] + tq * sd[i])) for i, nm in enumerate(names)}
+        ci = {"slope_up": (1.0, 1.0), "slope_down": iv["slope_down"], "d_plus": iv["d_plus"],
+              "d_minus": iv["d_minus"],
+              "h_coefficients": [(0.0, 0.0)] + [iv[f"c{i}"] for i in range(1, p + 1)],
+              "X_hat": [(float(x - tq * s), float(x + tq * s)) for x, s in zip(data.X, data.se)]}
+        fit = dict(fit, t_quantile=tq, confidence=self.confidence, param_se=sd.tolist())
+        return NonlinearResult(
+            type=kind, slope_up=1.0, slope_down=float(theta[-2]), d_plus=float(theta[-3]), d_minus=float(theta[-1]),
+            h_coefficients=(0.0,) + tuple(float(c) for c in theta[:p]), degree=int(p),
+            w_range=(float(V.min()), float(V.max())), ci=ci, cov=np.asarray(cov, float), param_names=names,
+            levels=tuple(float(u) for u in data.U), X_hat=tuple(float(x) for x in data.X),
+            X_hat_se=tuple(float(s) for s in data.se), flat_up=int(flat_up), flat_down=int(flat_down),
+            method=self.method, evidence=evidence, warnings=tuple(dict.fromkeys(warns)), fit=fit)
+
+
+# ---------------------------------------------------------------------------- run, save, load
+
+def _records_from(data, up, down) -> tuple[Any, Any]:
+    """The two staircase records from a ``simulation.h5`` path or a mapping name -> Record."""
+    if isinstance(data, (str, Path)):
+        from hwid.results import open_results, read_records
+        with open_results(data, ("simulation", "nonlinear")) as f:
+            if "experiments" not in f:
+                raise NonlinearIdentificationError(f"{data}: holds no experiments")
+            recs = read_records(f["experiments"])
+    else:
+        recs = dict(data)
+    missing = [s.name for s in (up, down) if s.name not in recs]
+    if missing:
+        raise NonlinearIdentificationError(
+            f"{data if isinstance(data, (str, Path)) else 'the data'} hold no experiment "
+            f"{' or '.join(repr(m) for m in missing)}; run hwid simulate with a config that has protocols.staircase")
+    return recs[up.name], recs[down.name]
+
+
+def identify_nonlinear(cfg, plant=None, data=None, journal_dir=None):
+    """Stage 1 on the config's staircases: run them on ``plant`` (default: the config's plant) or read
+    them from ``data`` (a ``simulation.h5`` path or a mapping of records); return ``(result, records)``."""
+    from hwid import protocols
+    if cfg.protocols.staircase is None:
+        raise NonlinearIdentificationError(
+            "the config has no protocols.staircase: stage 1 needs the ascending and descending staircases (Section 4)")
+    up, down = protocols.staircases(cfg)
+    if data is not None:
+        ru, rd = _records_from(data, up, down)
+    else:
+        if plant is None:
+            from hwid.plant import make_plant
+            plant = make_plant(cfg, journal_dir=journal_dir)
+        ru = plant.run(up.name, up.u)
+        rd = plant.run(down.name, down.u)
+        for r, s in ((ru, up), (rd, down)):
+            r.attrs.update({"direction": s.direction, "hold": s.hold, "levels": s.levels.tolist(),
+                            "lead_in": s.lead_in.tolist()})
+    est = NonlinearEstimator.from_config(cfg).fit(ru, rd, up, down)
+    return est.result_, [ru, rd]
+
+
+def save_nonlinear(path, cfg, result: NonlinearResult, records=()) -> Path:
+    """Write ``DIR/nonlinear.h5`` (``hwid_kind = "nonlinear"``): group ``result`` (the plain data of
+    :meth:`NonlinearResult.to_dict`) and group ``experiments`` (the staircase records)."""
+    from hwid.results import atomic_h5, write_dict, write_provenance, write_records
+    path = Path(path)
+    out = path if path.suffix == ".h5" else path / "nonlinear.h5"
+    d = result.to_dict()
+    fit = d.pop("fit")
+    with atomic_h5(out) as f:
+        write_provenance(f, "nonlinear", cfg)
+        g = f.require_group("result")
+        write_dict(g, {k: v for k, v in d.items() if k not in ("warnings", "param_names")})
+        import json
+        g.attrs["warnings"] = json.dumps(list(result.warnings))
+        g.attrs["param_names"] = json.dumps(list(result.param_names))
+        g.attrs["fit"] = json.dumps(fit, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o))
+        if records:
+            write_records(f.require_group("experiments"), records)
+    return out
+
+
+def load_nonlinear(path, cfg=None) -> NonlinearResult:
+    """Read a :class:`NonlinearResult` from ``nonlinear.h5`` (or a directory holding it)."""
+    import json
+    from hwid.results import open_results, read_dict
+    path = Path(path)
+    if path.is_dir():
+        path = path / "nonlinear.h5"
+    with open_results(path, "nonlinear", cfg) as f:
+        if "result" not in f:
+            raise NonlinearIdentificationError(f"{path}: holds no stage-1 result")
+        g = f["result"]
+        d = read_dict(g)
+        d["warnings"] = json.loads(g.attrs["warnings"])
+        d["param_names"] = json.loads(g.attrs["param_names"])
+        d["fit"] = json.loads(g.attrs["fit"])
+    return NonlinearResult.from_dict(d)
+
+
+# ---------------------------------------------------------------------------------- Table 1
+
+#: The paper's Table 1 (Section 6.1): j, U_j, X_j(M) (true) and X_hat_j(M) (the paper's estimate).
+PAPER_TABLE1 = (
+    (5, 0.2, -0.075, -0.076), (6, 0.4, -0.047, -0.048), (7, 0.6, 0.047, 0.045), (8, 0.8, 0.075, 0.074),
+    (9, 1.0, 0.03, 0.028), (10, 1.2, 0.27, 0.26),
+    (16, 0.0, 0.03, 0.031), (17, -0.3, 0.075, 0.076), (18, -0.6, -0.047, -0.046), (19, -1.0, -0.03, -0.029),
+    (20, -1.2, -0.27, -0.265), (21, -1.4, -1.78, -1.775),
+)
+#: The paper's border estimates (Section 6.1): d^+, S^d, d^-.
+PAPER_BORDERS = {"d_plus": 0.503, "slope_down": 1.01, "d_minus": -0.49}
+
+
+def table1_rows(cfg, result: NonlinearResult) -> dict:
+    """Table 1 side by side for a simulated config: for every level j (1-based over both staircases)
+    ``U_j``, the paper's ``X_j`` and ``X_hat_j(M)`` where the paper gives them, the true ``X_j`` of the
+    normalised plant, ours and its interval; and the borders (paper, truth, ours, interval)."""
+    from hwid import protocols
+    from hwid.model import from_config
+    truth = from_config(cfg.plant).normalised()
+    up, down = protocols.staircases(cfg)
+    state = _NEG if truth.input.type == "backlash" else 0.0
+    Xt = np.concatenate([truth.output(truth.input.steady(up.all_levels, state))[up.lead_in.size:],
+                         truth.output(truth.input.steady(down.all_levels, state))[down.lead_in.size:]])
+    paper = {j: (x, xh) for j, _, x, xh in PAPER_TABLE1}
+    rows = []
+    for j, (u, x, ci, xt) in enumerate(zip(result.levels, result.X_hat, result.ci["X_hat"], Xt), start=1):
+        px, pxh = paper.get(j, (None, None))
+        rows.append({"j": j, "U": u, "paper_X": px, "paper_X_hat": pxh, "true_X": float(xt), "X_hat": x,
+                     "ci": tuple(ci), "inside": bool(ci[0] <= xt <= ci[1])})
+    true_b = {"d_plus": truth.input.d_plus, "slope_down": truth.input.slope_down, "d_minus": truth.input.d_minus}
+    borders = []
+    for k in ("d_plus", "slope_down", "d_minus"):
+        ci = result.ci[k]
+        borders.append({"name": k, "paper": PAPER_BORDERS[k], "true": float(true_b[k]),
+                        "ours": float(getattr(result, k)), "ci": tuple(ci),
+                        "inside": bool(ci[0] <= true_b[k] <= ci[1])})
+    return {"rows": rows, "borders": borders}
