@@ -59,6 +59,28 @@ def simulate(config: Path = typer.Argument(..., help="Config YAML."),
     typer.echo(f"wrote {path}")
 
 
+@app.command("identify-nonlinear")
+def identify_nonlinear(config: Path = typer.Argument(..., help="Config YAML."),
+                       data: Optional[Path] = typer.Option(None, "--data", help="simulation.h5 holding the "
+                                                           "staircases (default: run them on the config's plant)."),
+                       out: Path = typer.Option(..., "--out", help="Output directory (nonlinear.h5 goes here)."),
+                       json_out: Optional[Path] = typer.Option(None, "--json", help="Also write the result as JSON.")):
+    """Stage 1 (Section 4): staircases -> h, the backlash borders and their type; OUT/nonlinear.h5."""
+    from hwid import config as C
+    from hwid.identify import nonlinear as NL
+    from hwid.results import write_json
+    cfg = C.load(config)
+    out = _out_dir(out)
+    res, records = NL.identify_nonlinear(cfg, data=data, journal_dir=out / "rig_journal")
+    path = NL.save_nonlinear(out, cfg, res, records)
+    if json_out is not None:
+        write_json(json_out, res.to_dict())
+    typer.echo(NL.format_summary(res))
+    for msg in res.warnings:
+        typer.echo(f"warning: {msg}", err=True)
+    typer.echo(f"wrote {path}")
+
+
 def _one_line(msg: str) -> str:
     """Messages from rigs and libraries may span lines; the CLI prints one."""
     return " ".join(msg.split())

@@ -203,8 +203,39 @@ def _predict(kind: str, theta: np.ndarray, data: _Data) -> np.ndarray:
 def _chi2(kind: str, theta: np.ndarray, data: _Data) -> float:
     if not (theta[-2] > 0 and theta[-3] >= theta[-1] and np.all(np.isfinite(theta))):
         return np.inf
-    r = (data.X - _predict(kind, theta, data)) / data.se
-    return float(r @ r)
+    with np.errstate(all="ignore"):
+        r = (data.X - _predict(kind, theta, data)) / data.se
+        c = float(r @ r)
+    return c if np.isfinite(c) else np.inf
+
+
+def _other_zeros(kind: str, theta: np.ndarray, data: _Data) -> int:
+    """Number of real zeros of ``h_bar`` other than 0 inside the range of ``w`` the data visit."""
+    v = _internal(kind, theta[-3], theta[-2], theta[-1], data)
+    lo, hi = float(v.min()), float(v.max())
+    z = _real_roots(np.concatenate([[0.0], theta[:-3]]), lo, hi)
+    tol = 1e-6 * max(1.0, hi - lo)
+    return int(np.sum(np.abs(z) > tol))
+
+
+def _pick(kind: str, fits: list, data: _Data) -> tuple[int, bool]:
+    """Choose among fits ``(theta, chi2)`` started from different roots of ``q`` (Remark 1.3).
+
+    If ``h_bar`` has another real zero ``w_0`` in the working range, the shifted model
+    ``(h_bar(. + w_0), d^+ + w_0, ...)`` fits exactly as well: the data cannot tell them apart and the
+    paper's assumption ``h(w) = 0 <=> w = 0`` decides. So among the fits within
+    ``chi2_min + max(9, chi2_min)`` (the closed form's candidates differ by their separately fitted
+    descending stage), the one whose ``h_bar`` has no other zero in the range visited is taken (the
+    best such); the flag says whether several distinct ones remained."""
+    chis = np.array([f[1] for f in fits])
+    if not np.any(np.isfinite(chis)):
+        return 0, False
+    best = float(np.min(chis))
+    near = [i for i in np.argsort(chis) if chis[i] <= best + max(9.0, best)]
+    clean = [i for i in near if _other_zeros(kind, fits[i][0], data) == 0]
+    pool = clean or near
+    distinct = [i for i in pool if abs(fits[i][0][-3] - fits[pool[0]][0][-3]) > 1e-3 * (1 + abs(fits[pool[0]][0][-3]))]
+    return int(pool[0]), bool(distinct)
 
 
 def _from_generic(kind: str, a: float, sigma: float, b: float) -> tuple[float, float, float]:
@@ -270,7 +301,7 @@ def _desc_index(kind: str, j_d: int, n_down: int) -> np.ndarray:
     return np.arange(j_d if kind == "backlash" else 0, n_down)
 
 
-def _descending(hc: np.ndarray, p: int, u, x, se) -> tuple[float, float, str]:
+def _descending(hc: np.ndarray, p: int, u, x, se, b_ref: Optional[float] = None) -> tuple[float, float, str]:
     """``(sigma, b)`` of ``r(u) = h_bar(sigma (u - b))`` on the descending border (eq. 14).
 
     Closed form: ``sigma = (r_p / c_p)^(1/p)``; ``b`` among the real roots of ``r`` and the value
@@ -294,7 +325,7 @@ def _descending(hc: np.ndarray, p: int, u, x, se) -> tuple[float, float, str]:
                 # r_{p-1} = c_p sig^p (-p b) + c_{p-1} sig^{p-1}
                 cands.append((hc[p - 1] * sig ** (p - 1) - rc[p - 1]) / (p * hc[p] * sig ** p))
             if cands:
-                b = min(cands, key=lambda bb: sse(sig, bb))
+                b = min(cands, key=(lambda bb: sse(sig, bb)) if b_ref is None else (lambda bb: abs(bb - b_ref)))
                 return float(sig), float(b), "closed form"
     if u.size < 2:
         raise _TooFew("descending")
@@ -314,15 +345,16 @@ def _descending(hc: np.ndarray, p: int, u, x, se) -> tuple[float, float, str]:
 class _Route:
     theta: np.ndarray      # (c_1..c_p, d^+, S^d, d^-)
     a: float               # the root of q taken as d^+ (generic)
+    b: float               # the descending border's root (generic)
     chi2: float
     desc_note: str
 
 
 def _paper_route(kind: str, p: int, data: _Data, j_a: int, j_d: int,
-                 a_ref: Optional[float] = None) -> list[_Route]:
-    """Candidates of the closed-form route (eqs. 11-14), best joint chi^2 first.
+                 a_ref: Optional[float] = None, b_ref: Optional[float] = None) -> list[_Route]:
+    """Candidates of the closed-form route (eqs. 11-14), the chosen one (:func:`_pick`) first.
 
-    ``a_ref`` (delta method) keeps the candidate root closest to a previous choice."""
+    ``a_ref``, ``b_ref`` (delta method) keep the roots closest to a previous choice."""
     n_up = data.n_up
     ia = _asc_index(kind, j_a, n_up)
     idn = _desc_index(kind, j_d, data.down.size) + n_up
@@ -344,14 +376,17 @@ def _paper_route(kind: str, p: int, data: _Data, j_a: int, j_d: int,
         hc = np.pad(hc, (0, p + 1 - hc.size))
         hc[0] = 0.0
         try:
-            sig, b, note = _descending(hc, p, data.U[idn], data.X[idn], data.se[idn])
+            sig, b, note = _descending(hc, p, data.U[idn], data.X[idn], data.se[idn], b_ref)
         except _TooFew:
             raise
         dp, sd, dm = _from_generic(kind, float(a), sig, b)
         theta = np.concatenate([hc[1:], [dp, sd, dm]])
-        out.append(_Route(theta, float(a), _chi2(kind, theta, data), note))
-    out.sort(key=lambda r: r.chi2)
-    return out
+        out.append(_Route(theta, float(a), float(b), _chi2(kind, theta, data), note))
+    if not out:
+        return out
+    first, _ = _pick(kind, [(r.theta, r.chi2) for r in out], data)
+    rest = sorted((r for i, r in enumerate(out) if i != first), key=lambda r: r.chi2)
+    return [out[first]] + rest
 
 
 # ------------------------------------------------------------------------------ joint NLS
@@ -364,10 +399,13 @@ def _nls(kind: str, theta0: np.ndarray, data: _Data) -> tuple[np.ndarray, float]
     p = theta0.size - 3
 
     def to_theta(z):
-        return np.concatenate([z[:p], [z[p], math.exp(min(z[p + 1], 50.0)), z[p] - math.exp(min(z[p + 2], 50.0))]])
+        return np.concatenate([z[:p], [z[p], math.exp(min(max(z[p + 1], -50.0), 50.0)),
+                                       z[p] - math.exp(min(max(z[p + 2], -50.0), 50.0))]])
 
     def fun(z):
-        return (data.X - _predict(kind, to_theta(z), data)) / data.se
+        with np.errstate(all="ignore"):
+            r = (data.X - _predict(kind, to_theta(z), data)) / data.se
+        return np.where(np.isfinite(r), r, 1e12)
 
     z0 = np.concatenate([theta0[:p], [theta0[-3], math.log(max(theta0[-2], 1e-6)),
                                       math.log(max(theta0[-3] - theta0[-1], 1e-6))]])
@@ -408,6 +446,7 @@ class _Candidate:
     chi2: float
     bic: float
     route: Optional[_Route] = None
+    ambiguous: bool = False      # other roots of q fit as well (h has another zero in range)
 
 
 class NonlinearEstimator:
@@ -565,16 +604,18 @@ class NonlinearEstimator:
                 if self.method == "paper":
                     best = routes[0]
                     theta, chi2 = best.theta, best.chi2
+                    _, amb = _pick(kind, [(r.theta, r.chi2) for r in routes], data)
                     # the closed form is judged on the ascending fit, as the paper does
                     ia = _asc_index(kind, j_a, n_up)
                     _, chi2_sel = _polyfit(data.U[ia], data.X[ia], data.se[ia], p)
                     crit = chi2_sel + (p + 1) * math.log(max(ia.size, 2))
-                    table.append(_Candidate(kind, p, theta, chi2, crit, best))
+                    table.append(_Candidate(kind, p, theta, chi2, crit, best, amb))
                 else:
-                    fits = [_nls(kind, r.theta, data) for r in routes[:3]]
-                    theta, chi2 = min(fits, key=lambda t: t[1])
+                    fits = [_nls(kind, r.theta, data) for r in routes[:4]]
+                    i, amb = _pick(kind, fits, data)
+                    theta, chi2 = fits[i]
                     table.append(_Candidate(kind, p, theta, chi2, chi2 + (p + 3) * math.log(n),
-                                            routes[0]))
+                                            routes[0], amb))
         if not table:
             raise NonlinearIdentificationError("no model could be fitted to the staircase data")
 
@@ -598,12 +639,16 @@ class NonlinearEstimator:
             warns.append(f"the selected degree p = {p} is the highest the N - j_a = {n_border_up} ascending border "
                          "levels support (eq. 11); a higher degree could not be tested: add levels to check it")
 
+        if best.ambiguous:
+            warns.append("several roots of the fitted h(u - d^+) give equally good models whose h has no other zero "
+                         "in the working range: d^+ is ambiguous (Remark 1.3 needs h(w) = 0 only at w = 0)")
+
         # covariance
         dof = n - (p + 3)
         if self.method == "nls":
             cov = _nls_cov(kind, theta, data)
         else:
-            cov = self._paper_cov(kind, p, data, j_a, j_d, best.route.a)
+            cov = self._paper_cov(kind, p, data, j_a, j_d, best.route.a, best.route.b)
         chi2 = _chi2(kind, theta, data)
         gof_p = float(stats.chi2.sf(chi2, dof)) if dof > 0 else float("nan")
         if self.method == "nls" and dof > 0 and gof_p < 1e-3:
@@ -654,10 +699,10 @@ class NonlinearEstimator:
         f = InputNonlinearity(kind, 1.0, theta[-2], theta[-3], theta[-1])
         return float(f.ascending(data.all_down[data.lead_down - 1]))
 
-    def _paper_cov(self, kind, p, data, j_a, j_d, a) -> np.ndarray:
+    def _paper_cov(self, kind, p, data, j_a, j_d, a, b) -> np.ndarray:
         """Delta method through the closed form: ``J diag(se^2) J^T`` with ``J = d theta / d X_hat``."""
         def theta_of(X):
-            return _paper_route(kind, p, data.with_X(X), j_a, j_d, a_ref=a)[0].theta
+            return _paper_route(kind, p, data.with_X(X), j_a, j_d, a_ref=a, b_ref=b)[0].theta
         J = []
         for k in range(data.X.size):
             h = 1e-3 * data.se[k]
@@ -834,3 +879,35 @@ def table1_rows(cfg, result: NonlinearResult) -> dict:
                         "ours": float(getattr(result, k)), "ci": tuple(ci),
                         "inside": bool(ci[0] <= true_b[k] <= ci[1])})
     return {"rows": rows, "borders": borders}
+
+
+def format_summary(result: NonlinearResult) -> str:
+    """A readable summary of a stage-1 result (what ``hwid identify-nonlinear`` prints)."""
+    def pm(key):
+        v = getattr(result, key)
+        lo, hi = result.ci[key]
+        return f"{v:.6g}  [{lo:.6g}, {hi:.6g}]"
+    conf = result.fit.get("confidence", 0.95)
+    lines = [f"input nonlinearity: {result.type}   ({result.evidence})",
+             f"normalised model (eqs. 4a-c), {100 * conf:g} % intervals; method {result.method}:",
+             f"  slope_up   = 1 (normalisation)",
+             f"  slope_down = {pm('slope_down')}",
+             f"  d_plus     = {pm('d_plus')}",
+             f"  d_minus    = {pm('d_minus')}",
+             f"  h degree p = {result.degree}" + ("" if "chi2" not in result.fit else
+                                                  f"   (joint chi2 = {result.fit['chi2']:.4g} for {result.fit['dof']} dof)"),
+             "  h coefficients (ascending powers):"]
+    for i, (c, (lo, hi)) in enumerate(zip(result.h_coefficients, result.ci["h_coefficients"])):
+        if i:
+            lines.append(f"    c{i} = {c:.6g}  [{lo:.6g}, {hi:.6g}]")
+    if result.type == "backlash":
+        lines.append(f"  horizontal paths: j_a = {result.flat_up}, j_d = {result.flat_down}")
+    else:
+        lines.append("  horizontal paths: none (Backlash-Inverse, Remark 1.4): j_a = j_d = 0")
+    lines.append(f"  w range identified: [{result.w_range[0]:.4g}, {result.w_range[1]:.4g}]")
+    n_up = int(result.fit.get("n_up", len(result.levels)))
+    lines.append("  steady states (eq. 9):   j       U_j       X_hat_j         se")
+    for j, (u, x, s) in enumerate(zip(result.levels, result.X_hat, result.X_hat_se), start=1):
+        tag = "up  " if j <= n_up else "down"
+        lines.append(f"    {tag:>20} {j:3d}  {u:+8.4f}  {x:+12.6f}  {s:9.2e}")
+    return "\n".join(lines)
