@@ -137,6 +137,13 @@ def batch(config: Path = typer.Argument(..., help="Config YAML (a simulated plan
     typer.echo(f"wrote {path}")
 
 
+@app.command()
+def report(directory: Path = typer.Argument(..., help="Run directory (simulation.h5, nonlinear.h5, linear.h5, batch.h5).")):
+    """Write DIR/report/: the figures (PNG and SVG) and one self-contained report.html."""
+    from hwid.report import write_report
+    typer.echo(f"wrote {write_report(directory)}")
+
+
 def main(argv: Optional[list[str]] = None) -> None:
     """Entry point: run the app, map user errors to one line and exit code 2."""
     try:
