@@ -59,6 +59,37 @@ def simulate(config: Path = typer.Argument(..., help="Config YAML."),
     typer.echo(f"wrote {path}")
 
 
+@app.command("identify-linear")
+def identify_linear(config: Path = typer.Argument(..., help="Config YAML."),
+                    nonlinear: Path = typer.Option(..., "--nonlinear", help="Stage 1 result DIR/nonlinear.h5."),
+                    out: Path = typer.Option(..., "--out", help="Output directory (linear.h5 goes here)."),
+                    json_out: Optional[Path] = typer.Option(None, "--json", help="Also write the result as JSON.")):
+    """Stage 2 (Section 5): sines behind the estimated pre-compensator, G(jw), a rational G(s); OUT/linear.h5."""
+    import warnings
+    from hwid import config as C
+    from hwid.identify import linear as L
+    from hwid.results import write_json
+    cfg = C.load(config)
+    try:
+        from hwid.identify.nonlinear import load_nonlinear
+    except ImportError:
+        raise HwidError("stage 1 (hwid.identify.nonlinear) is not available in this installation") from None
+    nl = load_nonlinear(nonlinear, cfg)
+    out = _out_dir(out)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", L.ExtrapolationWarning)   # listed below from the result
+        res, records = L.identify_linear(cfg, nl, journal_dir=out / "rig_journal")
+    path = L.save_linear(out / "linear.h5", cfg, res, records)
+    if json_out is not None:
+        write_json(json_out, res.to_dict())
+    for i, w in enumerate(res.frequencies):
+        typer.echo(f"w = {w:g} rad/s: |G| = {res.gain[i]:.5g} [{res.gain_ci[i][0]:.5g}, {res.gain_ci[i][1]:.5g}]"
+                   f"  phi = {res.phase[i]:.5g} [{res.phase_ci[i][0]:.5g}, {res.phase_ci[i][1]:.5g}] rad")
+    for msg in res.warnings:
+        typer.echo(f"warning: {msg}", err=True)
+    typer.echo(f"wrote {path}")
+
+
 @app.command("identify-nonlinear")
 def identify_nonlinear(config: Path = typer.Argument(..., help="Config YAML."),
                        data: Optional[Path] = typer.Option(None, "--data", help="simulation.h5 holding the "
@@ -142,6 +173,20 @@ def report(directory: Path = typer.Argument(..., help="Run directory (simulation
     """Write DIR/report/: the figures (PNG and SVG) and one self-contained report.html."""
     from hwid.report import write_report
     typer.echo(f"wrote {write_report(directory)}")
+
+
+@app.command()
+def diagnose(config: Path = typer.Argument(..., help="Config YAML: its plant is the real side."),
+             model: Optional[Path] = typer.Option(None, "--model", help="Sim side: a plant YAML (kind "
+                                                  "hammerstein_wiener) or an 'hwid run' directory; "
+                                                  "default: identify it from the plant first."),
+             out: Path = typer.Option(..., "--out", help="Output directory (diagnosis.h5, rig_journal/)."),
+             json_out: Optional[Path] = typer.Option(None, "--json", help="JSON summary (default OUT/diagnosis.json).")):
+    """Where and why the plant and the model part: names the unmodelled effect of the catalogue."""
+    from hwid import config as C
+    from hwid.diagnose import diagnose as run
+    cfg = C.load(config)
+    run(cfg, _out_dir(out), model=model, json_path=json_out, echo=typer.echo)
 
 
 def main(argv: Optional[list[str]] = None) -> None:

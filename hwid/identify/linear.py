@@ -210,25 +210,32 @@ class LinearEstimator:
         a = 0.5 + self.confidence / 2
         return float(stats.norm.ppf(a) if not np.isfinite(dof) else stats.t.ppf(a, dof))
 
-    def _input_correction(self, record, sine, nonlinear, hf: HarmonicFit) -> tuple[complex, float]:
+    def _input_correction(self, record, sine, nonlinear, hf: HarmonicFit, k_dist: int):
+        """``kappa`` (fundamental of ``F_hat[u]`` over ``U``, times the hold), the distortion (rms of the
+        other harmonics over the fundamental) and the coefficients ``V_0..V_K`` of ``F_hat[u]``."""
         kappa = 1.0 + 0j
         thd = 0.0
+        V = None
         u = getattr(record, "u", None)
         if u is not None and nonlinear is not None:
             v = np.asarray(nonlinear.input_nonlinearity().apply(np.asarray(u, float)), float)
             if not np.allclose(v, sine.z[: v.size], rtol=0, atol=1e-12 * max(1.0, sine.amplitude)):
-                S = period_sums(v, record.dt, sine.omega, 3)
+                S = period_sums(v, record.dt, sine.omega, k_dist)
                 used = slice(hf.first_period, hf.first_period + hf.periods)
                 th = np.linalg.solve(S.XtX[used].sum(0), S.Xty[used].sum(0))
-                c = th[4:] + 1j * th[1:4]
-                kappa = complex(c[0] / sine.amplitude)
-                thd = float(np.sqrt(np.sum(np.abs(c[1:]) ** 2)) / abs(c[0]))
+                V = np.concatenate([[th[0]], th[k_dist + 1:] + 1j * th[1:k_dist + 1]])
+                kappa = complex(V[1] / sine.amplitude)
+                thd = float(np.sqrt(np.sum(np.abs(V[2:]) ** 2) + V[0].real ** 2) / abs(V[1]))
         if self.hold_correction:
-            x = sine.omega * record.dt
-            kappa *= (1 - np.exp(-1j * x)) / (1j * x)
-        return complex(kappa), thd
+            kappa *= self._hold(sine.omega, record.dt)
+        return complex(kappa), thd, V
 
-    def fit(self, record, sine, nonlinear) -> "LinearEstimator":
+    @staticmethod
+    def _hold(omega, dt):
+        x = np.asarray(omega, float) * dt
+        return (1 - np.exp(-1j * x)) / (1j * x)
+
+    def fit(self, record, sine, nonlinear, g_model=None) -> "LinearEstimator":
         """Fit one sine experiment.
 
         Parameters
@@ -239,6 +246,12 @@ class LinearEstimator:
             The sine of eq. (15) that was pre-compensated.
         nonlinear : NonlinearLike
             Stage 1 result: ``h_coefficients``, ``w_range``, ``input_nonlinearity()``.
+        g_model : callable, optional
+            ``omega -> G(j omega)`` (e.g. a first-pass parametric fit). When the pre-compensated input
+            is not a pure sine (a Backlash-Inverse plant: one switching sample per reversal), its other
+            harmonics ``V_k`` reach ``w`` as ``G(j k omega) V_k`` and mix in ``h``; with ``g_model``
+            that distortion is put into the harmonic model (computed numerically) and the NLS estimate
+            is freed of its bias.
         """
         if self.method not in ("nls", "paper"):
             raise ValueError(f"method must be 'nls' or 'paper', got {self.method!r}")
@@ -268,13 +281,25 @@ class LinearEstimator:
             self.warnings_.append(f"omega = {omega:g} rad/s: the response is not periodic (first half of the "
                                   f"periods differs from the second, p = {hf.periodicity_p:.2g})")
 
-        kappa, thd = self._input_correction(record, sine, nonlinear, hf)
+        k_dist = max(1, min(15, k_cap))
+        kappa, thd, V = self._input_correction(record, sine, nonlinear, hf, k_dist)
         self.input_correction_ = kappa
         self.input_distortion_ = thd
-        if thd > 1e-2:
-            self.warnings_.append(f"omega = {omega:g} rad/s: the pre-compensated input is not a pure sine "
-                                  f"(model-predicted distortion {100 * thd:.2g} %); G is biased by its harmonics")
         rho, th_k = U * abs(kappa), float(np.angle(kappa))
+        # the distortion of w: d(t) = V_0 G(0) + sum_{k>=2} Im(V_k H(k omega) G(j k omega) e^{j k omega t})
+        W = None
+        if V is not None and thd > 0 and g_model is not None:
+            kk = np.arange(2, V.size)
+            W = np.zeros(V.size, dtype=complex)
+            W[0] = V[0].real
+            hold = self._hold(kk * omega, dt) if self.hold_correction else 1.0
+            W[2:] = V[2:] * hold * np.asarray(g_model(kk * omega), complex)
+        self.distortion_ = W
+        if thd > 1e-2:
+            self.warnings_.append(
+                f"omega = {omega:g} rad/s: the pre-compensated input is not a pure sine (model-predicted "
+                f"distortion {100 * thd:.2g} %); " + ("its harmonics are modelled through the first-pass "
+                                                     "G(s)" if W is not None else "G is biased by its harmonics"))
 
         ks_all = hm.relevant()
         ks = ks_all[ks_all <= k_max]
@@ -297,7 +322,7 @@ class LinearEstimator:
             return float(np.sum(np.abs(c - pred(g, phi)) ** 2 / var))
 
         q = self._quantile(hf.dof)
-        est = {"nls": self._nls(hm, ks, c, var, rho, th_k, cost), "paper": None}
+        est = {"nls": self._nls(hm, ks, c, var, rho, th_k, W), "paper": None}
         try:
             est["paper"] = self._paper(hm, ks, c, var, rho, th_k, cost, sorted(sig))
         except HwidError as err:
@@ -317,7 +342,8 @@ class LinearEstimator:
         self.gain_ci_, self.phase_ci_ = chosen["gain_ci"], chosen["phase_ci"]
         self.crlb_ = crlb(hm.h_coefficients, U, self.gain_, self.phase_, hf.sigma, hf.n_samples, ks,
                           abs(kappa), component_var=var)
-        self.predicted_ = pred(self.gain_, self.phase_)
+        self.predicted_ = pred(self.gain_, self.phase_) if W is None else \
+            _numeric_harmonics(hm, rho * self.gain_, self.phase_ - th_k, W, ks)[0]
 
         # -- extrapolation of h beyond the staircases' range (stage 1)
         lo, hi = (float(x) for x in nonlinear.w_range)
@@ -331,26 +357,35 @@ class LinearEstimator:
             warnings.warn(msg, ExtrapolationWarning, stacklevel=2)
         return self
 
-    def _nls(self, hm, ks, c, var, rho, th_k, cost) -> dict:
-        """Weighted NLS over the harmonics (ML under Gaussian noise); intervals from the Fisher matrix."""
+    def _nls(self, hm, ks, c, var, rho, th_k, W=None) -> dict:
+        """Weighted NLS over the harmonics (ML under Gaussian noise); intervals from the Fisher matrix.
+
+        With ``W`` (the distortion of w) the harmonic model is evaluated numerically."""
         sd = np.sqrt(var)
         # coarse grid: cost(g, phi) = const + sum |D|^2/v - 2 Re(conj(c) D e^{-jk phi'}) / v
-        g_grid = np.geomspace(1e-3, 1e2, 500)
+        g_grid = np.geomspace(1e-3, 1e2, 151)
         D = hm.D(rho * g_grid, ks)                                      # (G, K)
-        phis = np.linspace(0, 2 * np.pi, 720, endpoint=False)
+        phis = np.linspace(0, 2 * np.pi, 360, endpoint=False)
         E = np.exp(-1j * np.outer(phis, ks))                            # (F, K)
         grid = (np.abs(D) ** 2 / var).sum(1)[:, None] - 2 * ((np.conj(c) / var) * D) @ E.T
         i, j = np.unravel_index(np.argmin(grid.real), grid.shape)
         x0 = np.array([g_grid[i], phis[j] + th_k])
 
+        def model(x):
+            if W is None:
+                e = np.exp(-1j * ks * (x[1] - th_k))
+                C = hm.D(rho * x[0], ks) * e
+                return C, rho * hm.dD(rho * x[0], ks) * e, -1j * ks * C
+            C, dr, dp = _numeric_harmonics(hm, rho * x[0], x[1] - th_k, W, ks)
+            return C, rho * dr, dp
+
         def res(x):
-            r = (c - hm.D(rho * x[0], ks) * np.exp(-1j * ks * (x[1] - th_k))) / sd
+            r = (c - model(x)[0]) / sd
             return np.concatenate([r.real, r.imag])
 
         def jac(x):
-            e = np.exp(-1j * ks * (x[1] - th_k))
-            dg = -rho * hm.dD(rho * x[0], ks) * e / sd
-            dp = 1j * ks * hm.D(rho * x[0], ks) * e / sd
+            _, dg, dp = model(x)
+            dg, dp = -dg / sd, -dp / sd
             return np.column_stack([np.concatenate([dg.real, dg.imag]), np.concatenate([dp.real, dp.imag])])
 
         sol = optimize.least_squares(res, x0, jac=jac, method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14)
@@ -406,6 +441,29 @@ class LinearEstimator:
         var_p = vk / (k ** 2 * s ** 2) if s > 0 else np.inf
         return {"gain": float(g), "phase": float(phi), "cov": np.diag([var_g, var_p]), "harmonic": int(k),
                 "roots": [r_ / rho for r_ in roots]}
+
+
+def _numeric_harmonics(hm: HarmonicModel, r: float, phi: float, W, ks, M: int | None = None):
+    """Harmonics ``C_k`` of ``h(r sin(theta - phi) + d(theta))`` and their derivatives in ``r`` and ``phi``,
+    by the FFT of one period (``d = W_0 + sum_{k>=2} Im(W_k e^{j k theta})``: the input distortion)."""
+    ks = np.asarray(ks)
+    if M is None:
+        M = 1 << int(np.ceil(np.log2(8 * max(hm.degree, 1) * max(len(W), int(ks.max()) + 1))))
+    th = 2 * np.pi * np.arange(M) / M
+    d = np.full(M, float(np.real(W[0])))
+    for k in range(2, len(W)):
+        d += np.imag(W[k] * np.exp(1j * k * th))
+    sn, cs = np.sin(th - phi), np.cos(th - phi)
+    w = r * sn + d
+    c = np.asarray(hm.h_coefficients)
+    x = np.polynomial.polynomial.polyval(w, c)
+    hp = np.polynomial.polynomial.polyval(w, np.polynomial.polynomial.polyder(c))
+
+    def coef(sig):
+        F = np.fft.rfft(sig)[ks] / M
+        return -2 * F.imag + 2j * F.real
+
+    return coef(x), coef(hp * sn), coef(-hp * r * cs)
 
 
 # -------------------------------------------------------------------------------------------- results
@@ -487,6 +545,7 @@ def _per_frequency_dict(est: LinearEstimator) -> dict:
     hf["significant_harmonics"] = est.significant_harmonics_.astype(float)
     hf["input_correction"] = [est.input_correction_.real, est.input_correction_.imag]
     hf["input_distortion"] = est.input_distortion_
+    hf["distortion_modelled"] = est.distortion_ is not None
     hf["w_amplitude"] = est.w_amplitude_
     ests = {}
     for name, e in est.estimates_.items():
@@ -516,12 +575,33 @@ def estimate_response(records, sines, nonlinear, cfg=None, estimator: LinearEsti
     """Estimate ``G(j omega_i)`` from sine records already measured (one per ``sines[i]``)."""
     from hwid.identify.parametric import fit_rational
     est0 = estimator or (_estimator(cfg) if cfg is not None else LinearEstimator())
-    ests = []
-    for rec, s in zip(records, sines):
-        e = LinearEstimator(**{k: getattr(est0, k) for k in ("method", "harmonic", "k_max", "confidence",
-                                                             "hold_correction", "noise_model")})
-        ests.append(e.fit(rec, s, nonlinear))
+    lc = cfg.identification.linear if cfg is not None else None
+    max_order, fit_delay = (lc.max_order, lc.fit_delay) if lc else (4, False)
     w = np.array([s.omega for s in sines], float)
+
+    def one_pass(g_model=None):
+        out = []
+        with warnings.catch_warnings():
+            if g_model is not None:      # the first pass has warned already
+                warnings.simplefilter("ignore", ExtrapolationWarning)
+            for rec, s in zip(records, sines):
+                e = LinearEstimator(**{k: getattr(est0, k) for k in ("method", "harmonic", "k_max", "confidence",
+                                                                     "hold_correction", "noise_model")})
+                out.append(e.fit(rec, s, nonlinear, g_model=g_model))
+        return out
+
+    ests = one_pass()
+    if parametric and any(e.input_distortion_ > 0 for e in ests):
+        # second pass: the pre-compensated input's harmonics reach w through G(j k omega) (a
+        # Backlash-Inverse plant); take G there from a first-pass parametric fit
+        try:
+            ph = unwrap_phase(w, [e.phase_ for e in ests])
+            g = np.array([e.gain_ for e in ests])
+            first = fit_rational(w, g * np.exp(-1j * ph), np.array([e.cov_ for e in ests]), gain=g, phase=ph,
+                                 max_order=max_order, fit_delay=fit_delay)
+            ests = one_pass(first.freqresp)
+        except HwidError:
+            pass
     gain = np.array([e.gain_ for e in ests])
     phase_raw = np.array([e.phase_ for e in ests])
     phase = unwrap_phase(w, phase_raw)
@@ -540,10 +620,9 @@ def estimate_response(records, sines, nonlinear, cfg=None, estimator: LinearEsti
     warns = [m for e in ests for m in e.warnings_]
     par: dict = {}
     if parametric and len(sines) >= 1:
-        lc = cfg.identification.linear if cfg is not None else None
         try:
             fit = fit_rational(w, gain * np.exp(-1j * phase), cov, gain=gain, phase=phase,
-                               max_order=lc.max_order if lc else 4, fit_delay=lc.fit_delay if lc else False)
+                               max_order=max_order, fit_delay=fit_delay)
             par = fit.to_dict()
             warns += list(fit.warnings)
         except HwidError as err:

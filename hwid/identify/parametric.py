@@ -11,8 +11,9 @@ time domain, so this module fits one:
 * weighted nonlinear least squares of the residuals whitened by each estimate's 2x2 (Re, Im)
   covariance (propagated from the (|G|, phi) covariance of stage 2) -- the ML fit given those
   uncertainties;
-* orders ``1 <= n <= max_order``, ``0 <= m < n`` compared by BIC (``chi^2 + k ln(2 N_freq)``),
-  among stable fits that leave at least one degree of freedom;
+* orders ``1 <= n <= max_order``, ``0 <= m < n`` compared by the small-sample corrected Akaike
+  criterion AICc (``chi^2 + 2k + 2k(k+1)/(2 N_freq - k - 1)``; BIC's ``k ln(2 N_freq)`` over-fits with
+  the handful of frequencies of Table 2), among stable fits that leave a degree of freedom;
 * poles with intervals by the delta method (``dp = -sum_i p^i da_i / A'(p)``).
 """
 from __future__ import annotations
@@ -38,7 +39,7 @@ class RationalFit:
     chi2: float
     dof: int
     order: tuple[int, int]         # (n = deg A, m = deg B)
-    bic: float
+    aicc: float
     candidates: tuple = ()
     warnings: tuple[str, ...] = ()
     confidence: float = 0.95
@@ -63,7 +64,7 @@ class RationalFit:
                 "poles": [[float(p.real), float(p.imag)] for p in self.poles],
                 "poles_se": se.tolist(), "poles_ci": self.poles_ci.tolist(),
                 "order": [int(self.order[0]), int(self.order[1])], "chi2": float(self.chi2),
-                "dof": int(self.dof), "bic": float(self.bic), "criterion": "bic",
+                "dof": int(self.dof), "aicc": float(self.aicc), "criterion": "aicc",
                 "candidates": list(self.candidates)}
 
 
@@ -226,14 +227,14 @@ def fit_rational(omega, G, cov, gain=None, phase=None, max_order: int = 4, fit_d
         x, chi2, J = r
         poles = _poles_scaled(x[:n]) * w_ref
         stable = bool(np.all(poles.real < 0)) and (not fit_delay or x[n + m] >= 0)
-        bic = chi2 + k * np.log(N2)
-        cands.append({"n": n, "m": m, "chi2": chi2, "bic": float(bic), "stable": stable})
+        crit = chi2 + 2 * k + 2 * k * (k + 1) / (N2 - k - 1) if N2 - k - 1 > 0 else np.inf   # AICc
+        cands.append({"n": n, "m": m, "chi2": chi2, "aicc": float(crit), "stable": stable})
         if stable:
-            fits.append((bic, n, m, x, chi2, J))
+            fits.append((crit, n, m, x, chi2, J))
     if not fits:
         raise HwidError("no stable rational model fits the frequency response (try a lower max_order "
                         "or more frequencies)")
-    bic, n, m, x, chi2, J = min(fits, key=lambda f: f[0])
+    crit, n, m, x, chi2, J = min(fits, key=lambda f: f[0])
     try:
         cov_x = np.linalg.inv(J.T @ J)
     except np.linalg.LinAlgError:
@@ -264,5 +265,5 @@ def fit_rational(omega, G, cov, gain=None, phase=None, max_order: int = 4, fit_d
     if p_fit < 1e-3:
         warns.append(f"parametric fit: the best model (n={n}, m={m}) leaves chi2 = {chi2:.3g} on {dof} dof "
                      f"(p = {p_fit:.2g}); it does not explain G_hat within its uncertainties")
-    return RationalFit(num, den, tau, tau_se, poles, pc, chi2, dof, (n, m), float(bic), tuple(cands),
+    return RationalFit(num, den, tau, tau_se, poles, pc, chi2, dof, (n, m), float(crit), tuple(cands),
                        tuple(warns), confidence)
