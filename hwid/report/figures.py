@@ -36,6 +36,14 @@ def _axes(ax, n: int = 1, figsize=(7.0, 3.6), sharex: bool = True):
     return axes[0].figure, axes
 
 
+def _errorbar(ax, *args, gid=None, **kw):
+    """``ax.errorbar`` with ``gid`` on the data line only (not on the caps and bars)."""
+    cont = ax.errorbar(*args, **kw)
+    if gid is not None:
+        cont.lines[0].set_gid(gid)
+    return cont
+
+
 def decimate_envelope(t, y, max_points: int = 4000):
     """Reduce a long signal to at most ``max_points`` points, keeping each bucket's min and max
     (the plotted envelope is the same as the full signal's at screen resolution)."""
@@ -119,7 +127,7 @@ def plot_staircase_output(t, y, windows=None, X_hat=None, X_hat_ci=None, x_true=
             a.hlines(X_hat, [w[0] for w in windows], [w[1] for w in windows], color=C_WIN, lw=2.0,
                      label=r"$\hat X_j$", gid="X_hat")
             if X_hat_ci is not None:
-                a.errorbar(mids, X_hat, yerr=np.asarray(X_hat_ci, float), fmt="none", ecolor=C_WIN,
+                _errorbar(a, mids, X_hat, yerr=np.asarray(X_hat_ci, float), fmt="none", ecolor=C_WIN,
                            capsize=3, lw=1.0)
             if flat is not None and 0 < flat <= len(windows):
                 a.axvline(windows[flat - 1][1], color="k", lw=0.8, ls=":", gid="flat")
@@ -186,7 +194,7 @@ def plot_h(coefficients, cov=None, w_range=None, truth: Callable | Sequence[floa
     for label, p in (points or {}).items():
         pw, px = np.asarray(p[0], float), np.asarray(p[1], float)
         ci = np.asarray(p[2], float) if len(p) > 2 and p[2] is not None else None
-        a.errorbar(pw, px, yerr=ci, fmt=next(markers, "o"), ms=5, mfc="white", capsize=2, lw=1,
+        _errorbar(a, pw, px, yerr=ci, fmt=next(markers, "o"), ms=5, mfc="white", capsize=2, lw=1,
                    label=label, gid="points")
     a.axvspan(lo, hi, color="0.9", zorder=-5, lw=0)
     a.axhline(0, color="0.6", lw=0.6)
@@ -237,7 +245,7 @@ def plot_borders(estimate=None, truth=None, u_range=(-1.5, 1.5), ci: Mapping[str
         for key in ("d_plus", "d_minus"):
             if key in ci and ci[key] is not None:
                 l, h = ci[key]
-                a.errorbar([getattr(estimate, key)], [0.0], xerr=[[getattr(estimate, key) - l], [h - getattr(estimate, key)]],
+                _errorbar(a, [getattr(estimate, key)], [0.0], xerr=[[getattr(estimate, key) - l], [h - getattr(estimate, key)]],
                            fmt="o", color=C_EST, capsize=3, ms=4, gid=f"ci_{key}")
     a.axhline(0, color="0.6", lw=0.6)
     a.axvline(0, color="0.6", lw=0.6)
@@ -331,7 +339,7 @@ def plot_spectrum(ks, coef, se=None, model=None, truth=None, dc=None, title: str
     err = None if se is None else Z95 * np.asarray(se, float)
     am.bar(ks, s, width=0.5, color=C_WIN, alpha=0.7, label=r"$\hat s_k$ measured", gid="measured")
     if err is not None:
-        am.errorbar(ks, s, yerr=err, fmt="none", ecolor="k", capsize=3, lw=0.8)
+        _errorbar(am, ks, s, yerr=err, fmt="none", ecolor="k", capsize=3, lw=0.8)
     if model is not None:
         am.plot(ks, np.abs(model), "o", color=C_EST, mfc="none", ms=7, label="model", gid="model")
     if truth is not None:
@@ -348,7 +356,7 @@ def plot_spectrum(ks, coef, se=None, model=None, truth=None, dc=None, title: str
     # phase only where the harmonic stands out of the noise
     sig = s > (err if err is not None else 0.0)
     perr = None if err is None else np.where(sig, err / np.where(s > 0, s, 1), np.nan)
-    ap.errorbar(ks[sig], np.angle(coef)[sig], yerr=None if perr is None else perr[sig], fmt="s", color=C_WIN,
+    _errorbar(ap, ks[sig], np.angle(coef)[sig], yerr=None if perr is None else perr[sig], fmt="s", color=C_WIN,
                 capsize=3, ms=5, label=r"$\hat\psi_k$", gid="measured_phase")
     if model is not None:
         ap.plot(ks, np.angle(model), "o", color=C_EST, mfc="none", ms=7, label="model", gid="model_phase")
@@ -418,9 +426,9 @@ def plot_bode(omega, gain, phase, gain_ci=None, phase_ci=None, parametric=None, 
         lo, hi = np.asarray(ci[0], float), np.asarray(ci[1], float)
         return np.vstack([np.clip(v - lo, 0, None), np.clip(hi - v, 0, None)])
 
-    ag.errorbar(omega, gain, yerr=_yerr(gain, gain_ci), fmt="o", color=C_WIN, capsize=3, ms=5, zorder=5,
+    _errorbar(ag, omega, gain, yerr=_yerr(gain, gain_ci), fmt="o", color=C_WIN, capsize=3, ms=5, zorder=5,
                 label=r"$|\hat G(j\omega_i)|$ ± 95 %", gid="estimate")
-    ap.errorbar(omega, phase, yerr=_yerr(phase, phase_ci), fmt="o", color=C_WIN, capsize=3, ms=5, zorder=5,
+    _errorbar(ap, omega, phase, yerr=_yerr(phase, phase_ci), fmt="o", color=C_WIN, capsize=3, ms=5, zorder=5,
                 label=r"$\hat\varphi(\omega_i)$ ± 95 %", gid="estimate_phase")
     ag.set_xscale("log")
     ag.set_yscale("log")

@@ -153,19 +153,20 @@ def load_run(directory: str | Path) -> RunData:
         from hwid.model import from_config
         run.truth = from_config(run.cfg.plant).normalised()
 
+    batch_only = present["batch.h5"] and not any(present[n] for n in FILES[:3])
     if present["nonlinear.h5"]:
         run.nonlinear = _load_stage("hwid.identify.nonlinear", "load_nonlinear", d / "nonlinear.h5", run)
         _records_from(d / "nonlinear.h5", "nonlinear", run)
-    else:
+    elif not batch_only:
         run.notes.append("nonlinear.h5 is missing: stage 1 (the input and output nonlinearities) has not "
                          "run here; run `hwid run` or the stage 1 command to get Table 1 and Figs. 9, 12")
     if present["linear.h5"]:
         run.linear = _load_stage("hwid.identify.linear", "load_linear", d / "linear.h5", run)
         _records_from(d / "linear.h5", "linear", run)
-    elif not present["batch.h5"] or present["simulation.h5"] or present["nonlinear.h5"]:
+    elif not batch_only:
         run.notes.append("linear.h5 is missing: stage 2 (G(jω)) has not run here; Table 2 and the Bode "
                          "plot are not shown")
-    if not present["simulation.h5"] and not run.records:
+    if not present["simulation.h5"] and not run.records and not batch_only:
         run.notes.append("simulation.h5 is missing: no measured experiments to plot")
     if present["batch.h5"]:
         try:
@@ -791,7 +792,7 @@ def table2_html(run: RunData) -> str:
     for i, w in enumerate(om):
         cr = ""
         if cp is not None and cg is not None:   # stage 2 stores variance bounds
-            cr = f"{_num(np.sqrt(cp[i]), 2)} / {_num(np.sqrt(cg[i]), 2)}"
+            cr = f"{_num(np.sqrt(cp[i]), 3)} / {_num(np.sqrt(cg[i]), 3)}"
         cells = [str(i + 1), _num(amp), _num(w),
                  _pm(phase[i], None if pci is None else (pci[0][i], pci[1][i])),
                  _num(None if phi_true is None else phi_true[i]),
