@@ -144,8 +144,11 @@ def test_paper_parametric_recovers_true_poles(paper_run):
     assert np.all(poles[:, 0] < 0)
 
 
-def test_save_load_roundtrip_and_json(paper_run, tmp_path):
-    cfg, res, recs, _ = paper_run
+def test_save_load_roundtrip_and_json(paper_cfg, tmp_path):
+    cfg = _small(paper_cfg, **{"protocols.sine.frequencies": [0.1, 0.2]})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExtrapolationWarning)
+        res, recs = identify_linear(cfg, KnownNonlinear.from_config(cfg))
     p = save_linear(tmp_path / "linear.h5", cfg, res, recs)
     back = load_linear(p, cfg)
     np.testing.assert_allclose(back.gain, res.gain)
@@ -245,3 +248,36 @@ def test_cli_identify_linear(paper_cfg, tmp_path, monkeypatch):
     g, p = _truth(cfg, d["frequencies"])
     for i in range(2):
         assert d["gain_ci"][i][0] - 1e-3 < g[i] < d["gain_ci"][i][1] + 1e-3
+
+
+def test_stage1_uncertainty_is_propagated(paper_cfg):
+    """A stage 1 result off by a draw from its own covariance: the noise-only intervals miss the
+    truth, the propagated ones (J S J^T added) hold it."""
+    from dataclasses import dataclass
+
+    @dataclass(frozen=True)
+    class Stage1(KnownNonlinear):
+        cov: np.ndarray = None
+        param_names: tuple = ()
+
+    cfg = _small(paper_cfg, **{"protocols.sine.frequencies": [0.05, 0.2], "protocols.sine.periods": 20})
+    true = KnownNonlinear.from_config(cfg)
+    names = ("c1", "c2", "c3", "c4", "c5", "d_plus", "slope_down", "d_minus")
+    sd = np.array([2e-3, 1e-3, 2e-2, 1e-2, 4e-2, 2e-3, 2e-3, 2e-3])
+    S = np.diag(sd ** 2)
+    x = np.array([*true.h_coefficients[1:], true.input.d_plus, true.input.slope_down, true.input.d_minus])
+    x = x + 1.5 * sd * np.array([1, -1, 1, -1, 1, 1, -1, 1])
+    F = InputNonlinearity("backlash", 1.0, x[6], x[5], x[7])
+    nl = Stage1(F, (0.0, *x[:5]), true.w_range, S, names)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExtrapolationWarning)
+        res, _ = identify_linear(cfg, nl)
+    zg, zp = _within(res, cfg, k=3.0)
+    for h in res.harmonics:
+        e = h["estimates"]["nls"]
+        assert np.all(np.diag(e["cov_stage1"]) > 0)
+        np.testing.assert_allclose(e["cov"], e["cov_noise"] + e["cov_stage1"])
+    # without propagation the same estimates are many noise-only standard errors off
+    noise_z = [(h["estimates"]["nls"]["gain"] - g) / np.sqrt(h["estimates"]["nls"]["cov_noise"][0, 0])
+               for h, g in zip(res.harmonics, _truth(cfg, res.frequencies)[0])]
+    assert max(abs(z) for z in noise_z) > 4

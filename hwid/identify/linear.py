@@ -176,6 +176,9 @@ class LinearEstimator:
         Divide out the zero-order hold of the sampled input.
     noise_model : {"auto", "white", "periodic"}
         See :func:`hwid.identify.harmonics.fit_harmonics`.
+    propagate_stage1 : bool
+        In :func:`estimate_response`, widen the intervals by the stage 1 uncertainty
+        (:meth:`add_stage1_uncertainty`) when the stage 1 result carries ``cov``.
 
     Attributes
     ----------
@@ -197,13 +200,15 @@ class LinearEstimator:
     """
 
     def __init__(self, method: str = "nls", harmonic: Optional[int] = None, k_max: Optional[int] = None,
-                 confidence: float = 0.95, hold_correction: bool = True, noise_model: str = "auto"):
+                 confidence: float = 0.95, hold_correction: bool = True, noise_model: str = "auto",
+                 propagate_stage1: bool = True):
         self.method = method
         self.harmonic = harmonic
         self.k_max = k_max
         self.confidence = confidence
         self.hold_correction = hold_correction
         self.noise_model = noise_model
+        self.propagate_stage1 = propagate_stage1
 
     # -- helpers
     def _quantile(self, dof: float) -> float:
@@ -258,118 +263,235 @@ class LinearEstimator:
         if not 0 < self.confidence < 1:
             raise ValueError("confidence must be in (0, 1)")
         y = np.asarray(record.y, float)
-        dt, omega, U = float(record.dt), float(sine.omega), float(sine.amplitude)
-        hm = HarmonicModel(tuple(nonlinear.h_coefficients))
-        p = hm.degree
+        dt, omega = float(record.dt), float(sine.omega)
+        p = len(tuple(nonlinear.h_coefficients)) - 1
         if p < 1:
             raise ValueError("h must have degree >= 1")
         spp = 2 * np.pi / omega / dt
         k_cap = max(1, min(int(np.floor((np.pi / dt) / omega - 1e-9)), int((spp - 1) // 2)))
         k_max = min(self.k_max or p + 2, k_cap)
-        self.warnings_ = []
+        self._record, self._sine, self._k_cap, self._k_max = record, sine, k_cap, k_max
+        self.data_warnings_ = []
 
         hf = fit_harmonics(y, dt, omega, k_max, first_period=sine.lead_in_periods, noise_model=self.noise_model)
         self.harmonics_ = hf
         if hf.first_period > sine.lead_in_periods:
-            self.warnings_.append(f"omega = {omega:g} rad/s: the response was not yet periodic after the "
-                                  f"{sine.lead_in_periods} lead-in periods; {hf.first_period - sine.lead_in_periods} "
-                                  f"more discarded")
+            self.data_warnings_.append(f"omega = {omega:g} rad/s: the response was not yet periodic after the "
+                                       f"{sine.lead_in_periods} lead-in periods; "
+                                       f"{hf.first_period - sine.lead_in_periods} more discarded")
         if hf.steady_p < 1e-3:
-            self.warnings_.append(f"omega = {omega:g} rad/s: no steady state reached (the first used period "
-                                  f"still differs from the late ones, p = {hf.steady_p:.2g}); add lead-in periods")
+            self.data_warnings_.append(f"omega = {omega:g} rad/s: no steady state reached (the first used period "
+                                       f"still differs from the late ones, p = {hf.steady_p:.2g}); add lead-in "
+                                       f"periods")
         if hf.periodicity_p < 1e-3:
-            self.warnings_.append(f"omega = {omega:g} rad/s: the response is not periodic (first half of the "
-                                  f"periods differs from the second, p = {hf.periodicity_p:.2g})")
+            self.data_warnings_.append(f"omega = {omega:g} rad/s: the response is not periodic (first half of the "
+                                       f"periods differs from the second, p = {hf.periodicity_p:.2g})")
+        return self.refit(nonlinear, g_model)
 
-        k_dist = max(1, min(15, k_cap))
-        kappa, thd, V = self._input_correction(record, sine, nonlinear, hf, k_dist)
-        self.input_correction_ = kappa
-        self.input_distortion_ = thd
+    def _distortion(self, V, g_model):
+        """``W``: the distortion of w, ``d = V_0 G(0) + sum_{k>=2} Im(V_k H(k omega) G(j k omega) e^{jk omega t})``."""
+        if V is None or g_model is None:
+            return None
+        omega, dt = self._sine.omega, self._record.dt
+        kk = np.arange(2, V.size)
+        W = np.zeros(V.size, dtype=complex)
+        W[0] = V[0].real
+        hold = self._hold(kk * omega, dt) if self.hold_correction else 1.0
+        W[2:] = V[2:] * hold * np.asarray(g_model(kk * omega), complex)
+        return W
+
+    def _tail_input(self, nonlinear):
+        """``kappa`` and ``V`` of ``F_hat[u]`` from the last used period only (cheap; for derivatives)."""
+        rec, sine, hf = self._record, self._sine, self.harmonics_
+        T, dt = sine.period, rec.dt
+        last = hf.first_period + hf.periods - 1
+        a, b = int(np.ceil(last * T / dt - 1e-9)), int(np.ceil((last + 1) * T / dt - 1e-9))
+        a0 = max(0, a - (b - a))
+        v = np.asarray(nonlinear.input_nonlinearity().apply(np.asarray(rec.u[a0:b], float)), float)[a - a0:]
+        K = max(1, min(15, self._k_cap))
+        if getattr(self, "_tail_pinv", None) is None or self._tail_pinv.shape[1] != v.size:
+            from hwid.identify.harmonics import _design
+            self._tail_pinv = np.linalg.pinv(_design(np.arange(a, b) * dt, sine.omega, K))
+        th = self._tail_pinv @ v
+        V = np.concatenate([[th[0]], th[K + 1:] + 1j * th[1:K + 1]])
+        kappa = complex(V[1] / sine.amplitude)
+        if self.hold_correction:
+            kappa *= self._hold(sine.omega, dt)
+        return kappa, V
+
+    def _point(self, nonlinear, g_model, ks, c, var, sig, kappa, V, x0=None) -> dict:
+        """Both estimators for one (nonlinear, input) hypothesis."""
+        hm = HarmonicModel(tuple(nonlinear.h_coefficients))
+        U = float(self._sine.amplitude)
         rho, th_k = U * abs(kappa), float(np.angle(kappa))
-        # the distortion of w: d(t) = V_0 G(0) + sum_{k>=2} Im(V_k H(k omega) G(j k omega) e^{j k omega t})
-        W = None
-        if V is not None and thd > 0 and g_model is not None:
-            kk = np.arange(2, V.size)
-            W = np.zeros(V.size, dtype=complex)
-            W[0] = V[0].real
-            hold = self._hold(kk * omega, dt) if self.hold_correction else 1.0
-            W[2:] = V[2:] * hold * np.asarray(g_model(kk * omega), complex)
-        self.distortion_ = W
-        if thd > 1e-2:
-            self.warnings_.append(
-                f"omega = {omega:g} rad/s: the pre-compensated input is not a pure sine (model-predicted "
-                f"distortion {100 * thd:.2g} %); " + ("its harmonics are modelled through the first-pass "
-                                                     "G(s)" if W is not None else "G is biased by its harmonics"))
-
-        ks_all = hm.relevant()
-        ks = ks_all[ks_all <= k_max]
-        if ks.size == 0:
-            raise HwidError(f"omega = {omega:g} rad/s: no harmonic of h is below the Nyquist frequency")
-        idx = ks - 1
-        c = hf.coef[idx]
-        var = hf.var[idx]
-        sig = set(hf.significant().tolist()) & set(ks.tolist())
-        if not sig:
-            self.warnings_.append(f"omega = {omega:g} rad/s: no harmonic is significantly above the noise; "
-                                  f"G is not determined (raise U or the number of periods)")
-        self.used_harmonics_ = ks
-        self.significant_harmonics_ = np.array(sorted(sig), dtype=int)
-
-        def pred(g, phi):
-            return hm.D(rho * g, ks) * np.exp(-1j * ks * (phi - th_k))
+        W = self._distortion(V, g_model) if V is not None else None
 
         def cost(g, phi):
-            return float(np.sum(np.abs(c - pred(g, phi)) ** 2 / var))
+            return float(np.sum(np.abs(c - hm.D(rho * g, ks) * np.exp(-1j * ks * (phi - th_k))) ** 2 / var))
 
-        q = self._quantile(hf.dof)
-        est = {"nls": self._nls(hm, ks, c, var, rho, th_k, W), "paper": None}
+        est = {"nls": self._nls(hm, ks, c, var, rho, th_k, W, x0), "paper": None}
         try:
             est["paper"] = self._paper(hm, ks, c, var, rho, th_k, cost, sorted(sig))
         except HwidError as err:
             if self.method == "paper":
                 raise
             est["paper"] = {"error": str(err)}
+        return est, hm, rho, th_k, W
+
+    def refit(self, nonlinear, g_model=None) -> "LinearEstimator":
+        """Re-estimate from the stored harmonic fit with another stage 1 result or ``g_model``."""
+        hf, sine, record = self.harmonics_, self._sine, self._record
+        omega, dt, U = float(sine.omega), float(record.dt), float(sine.amplitude)
+        self.warnings_ = list(self.data_warnings_)
+        hm = HarmonicModel(tuple(nonlinear.h_coefficients))
+        k_max = self._k_max
+        k_dist = max(1, min(15, self._k_cap))
+        kappa, thd, V = self._input_correction(record, sine, nonlinear, hf, k_dist)
+        self.input_correction_ = kappa
+        self.input_distortion_ = thd
+        if V is not None and g_model is None:
+            V = None          # the distortion needs G at the harmonics: left out of this pass
+        if thd > 1e-2:
+            self.warnings_.append(
+                f"omega = {omega:g} rad/s: the pre-compensated input is not a pure sine (model-predicted "
+                f"distortion {100 * thd:.2g} %); " + ("its harmonics are modelled through the first-pass "
+                                                     "G(s)" if V is not None else "G is biased by its harmonics"))
+
+        ks_all = hm.relevant()
+        ks = ks_all[ks_all <= k_max]
+        if ks.size == 0:
+            raise HwidError(f"omega = {omega:g} rad/s: no harmonic of h is below the Nyquist frequency")
+        c, var = hf.coef[ks - 1], hf.var[ks - 1]
+        sig = set(hf.significant().tolist()) & set(ks.tolist())
+        if not sig:
+            self.warnings_.append(f"omega = {omega:g} rad/s: no harmonic is significantly above the noise; "
+                                  f"G is not determined (raise U or the number of periods)")
+        self.used_harmonics_ = ks
+        self.significant_harmonics_ = np.array(sorted(sig), dtype=int)
+        est, hm, rho, th_k, W = self._point(nonlinear, g_model, ks, c, var, sig, kappa, V)
+        self.distortion_ = W
         for e in est.values():
             if e and "gain" in e:
                 e["phase"] = _wrap(e["phase"])
-                se = np.sqrt(np.diag(e["cov"]))
-                e["gain_ci"] = (e["gain"] - q * se[0], e["gain"] + q * se[0])
-                e["phase_ci"] = (e["phase"] - q * se[1], e["phase"] + q * se[1])
+                e["cov_noise"] = np.asarray(e["cov"])
         self.estimates_ = est
+        self._ctx = (ks, c, var, sig, g_model)
+        self._set_intervals()
         chosen = est[self.method]
-        self.gain_, self.phase_ = chosen["gain"], chosen["phase"]
-        self.cov_ = np.asarray(chosen["cov"])
-        self.gain_ci_, self.phase_ci_ = chosen["gain_ci"], chosen["phase_ci"]
         self.crlb_ = crlb(hm.h_coefficients, U, self.gain_, self.phase_, hf.sigma, hf.n_samples, ks,
                           abs(kappa), component_var=var)
-        self.predicted_ = pred(self.gain_, self.phase_) if W is None else \
-            _numeric_harmonics(hm, rho * self.gain_, self.phase_ - th_k, W, ks)[0]
+        self.predicted_ = hm.D(rho * self.gain_, ks) * np.exp(-1j * ks * (self.phase_ - th_k)) if W is None \
+            else _numeric_harmonics(hm, rho * self.gain_, self.phase_ - th_k, W, ks)[0]
 
         # -- extrapolation of h beyond the staircases' range (stage 1)
         lo, hi = (float(x) for x in nonlinear.w_range)
-        r = rho * self.gain_
+        r = rho * chosen["gain"]
         self.w_amplitude_ = r
         self.extrapolated_ = bool(-r < lo - 1e-12 or r > hi + 1e-12)
         if self.extrapolated_:
             msg = (f"omega = {omega:g} rad/s: U|G| = {r:.3g} drives w over [{-r:.3g}, {r:.3g}], outside "
                    f"[{lo:.3g}, {hi:.3g}] where h was identified; h is extrapolated there")
             self.warnings_.append(msg)
-            warnings.warn(msg, ExtrapolationWarning, stacklevel=2)
+            warnings.warn(msg, ExtrapolationWarning, stacklevel=3)
         return self
 
-    def _nls(self, hm, ks, c, var, rho, th_k, W=None) -> dict:
+    def _set_intervals(self):
+        q = self._quantile(self.harmonics_.dof)
+        for e in self.estimates_.values():
+            if e and "gain" in e:
+                se = np.sqrt(np.diag(e["cov"]))
+                e["gain_ci"] = (e["gain"] - q * se[0], e["gain"] + q * se[0])
+                e["phase_ci"] = (e["phase"] - q * se[1], e["phase"] + q * se[1])
+        chosen = self.estimates_[self.method]
+        self.gain_, self.phase_ = chosen["gain"], chosen["phase"]
+        self.cov_ = np.asarray(chosen["cov"])
+        self.gain_ci_, self.phase_ci_ = chosen["gain_ci"], chosen["phase_ci"]
+
+    def add_stage1_uncertainty(self, nonlinear, g_model=None, step: float = 0.5) -> "LinearEstimator":
+        """Widen the covariances by the stage 1 uncertainty (two-step estimator, delta method).
+
+        ``cov = cov_noise + J S J^T`` with ``S = nonlinear.cov`` over ``nonlinear.param_names``
+        (``c1..cp, d_plus, slope_down, d_minus``) and ``J = d(|G|, phi) / d(stage 1)`` by central
+        differences of ``+-step`` standard deviations: each perturbed stage 1 changes h in eq. (20)
+        and, through ``F_hat[u]`` for the fixed pre-compensated ``u``, the input the model assumes
+        (``kappa`` and the distortion). The two experiments' noises are independent, so the terms add.
+        """
+        S = np.asarray(getattr(nonlinear, "cov", None) if getattr(nonlinear, "cov", None) is not None else [],
+                       float)
+        names = tuple(getattr(nonlinear, "param_names", ()) or ())
+        if S.size == 0 or S.shape != (len(names), len(names)) or not np.all(np.isfinite(S)):
+            return self
+        from hwid.model import InputNonlinearity
+        F = nonlinear.input_nonlinearity()
+        base = {"d_plus": F.d_plus, "slope_down": F.slope_down, "d_minus": F.d_minus}
+        h0 = list(nonlinear.h_coefficients)
+        ks, c, var, sig, _ = self._ctx
+
+        def variant(name, delta):
+            h = list(h0)
+            par = dict(base)
+            if name.startswith("c") and name[1:].isdigit():
+                i = int(name[1:])
+                if i >= len(h):
+                    return None
+                h[i] += delta
+            elif name in par:
+                par[name] += delta
+            else:
+                return None
+            if par["slope_down"] <= 0 or par["d_plus"] <= par["d_minus"]:
+                return None
+            return KnownNonlinear(InputNonlinearity(F.type, 1.0, par["slope_down"], par["d_plus"], par["d_minus"]),
+                                  tuple(h), nonlinear.w_range)
+
+        x_ref = np.array([self.estimates_["nls"]["gain"], self.estimates_["nls"]["phase"]])
+
+        def point(nl):
+            kappa, V = self._tail_input(nl)
+            Vm = V if g_model is not None else None
+            e, *_ = self._point(nl, g_model, ks, c, var, sig, kappa, Vm, x0=x_ref)
+            return {m: (np.array([e[m]["gain"], e[m]["phase"]]) if e.get(m) and "gain" in e[m] else None)
+                    for m in ("nls", "paper")}
+
+        ref = point(nonlinear)
+        J = {m: np.zeros((2, len(names))) for m in ref}
+        for j, name in enumerate(names):
+            sd = float(np.sqrt(max(S[j, j], 0.0)))
+            if sd == 0:
+                continue
+            hi, lo = variant(name, step * sd), variant(name, -step * sd)
+            if hi is None or lo is None:
+                continue
+            ph, pl = point(hi), point(lo)
+            for m in J:
+                if ph[m] is None or pl[m] is None:
+                    continue
+                d = ph[m] - pl[m]
+                d[1] = np.angle(np.exp(1j * d[1]))
+                J[m][:, j] = d / (2 * step * sd)
+        for m, e in self.estimates_.items():
+            if e and "gain" in e:
+                e["cov_stage1"] = J[m] @ S @ J[m].T
+                e["cov"] = e["cov_noise"] + e["cov_stage1"]
+                e["jac_stage1"] = J[m]
+        self._set_intervals()
+        return self
+
+    def _nls(self, hm, ks, c, var, rho, th_k, W=None, x0=None) -> dict:
         """Weighted NLS over the harmonics (ML under Gaussian noise); intervals from the Fisher matrix.
 
         With ``W`` (the distortion of w) the harmonic model is evaluated numerically."""
         sd = np.sqrt(var)
-        # coarse grid: cost(g, phi) = const + sum |D|^2/v - 2 Re(conj(c) D e^{-jk phi'}) / v
-        g_grid = np.geomspace(1e-3, 1e2, 151)
-        D = hm.D(rho * g_grid, ks)                                      # (G, K)
-        phis = np.linspace(0, 2 * np.pi, 360, endpoint=False)
-        E = np.exp(-1j * np.outer(phis, ks))                            # (F, K)
-        grid = (np.abs(D) ** 2 / var).sum(1)[:, None] - 2 * ((np.conj(c) / var) * D) @ E.T
-        i, j = np.unravel_index(np.argmin(grid.real), grid.shape)
-        x0 = np.array([g_grid[i], phis[j] + th_k])
+        if x0 is None:
+            # coarse grid: cost(g, phi) = const + sum |D|^2/v - 2 Re(conj(c) D e^{-jk phi'}) / v
+            g_grid = np.geomspace(1e-3, 1e2, 151)
+            D = hm.D(rho * g_grid, ks)                                      # (G, K)
+            phis = np.linspace(0, 2 * np.pi, 360, endpoint=False)
+            E = np.exp(-1j * np.outer(phis, ks))                            # (F, K)
+            grid = (np.abs(D) ** 2 / var).sum(1)[:, None] - 2 * ((np.conj(c) / var) * D) @ E.T
+            i, j = np.unravel_index(np.argmin(grid.real), grid.shape)
+            x0 = np.array([g_grid[i], phis[j] + th_k])
+        x0 = np.asarray(x0, float)
 
         def model(x):
             if W is None:
@@ -579,29 +701,37 @@ def estimate_response(records, sines, nonlinear, cfg=None, estimator: LinearEsti
     max_order, fit_delay = (lc.max_order, lc.fit_delay) if lc else (4, False)
     w = np.array([s.omega for s in sines], float)
 
-    def one_pass(g_model=None):
+    def one_pass():
         out = []
-        with warnings.catch_warnings():
-            if g_model is not None:      # the first pass has warned already
-                warnings.simplefilter("ignore", ExtrapolationWarning)
-            for rec, s in zip(records, sines):
-                e = LinearEstimator(**{k: getattr(est0, k) for k in ("method", "harmonic", "k_max", "confidence",
-                                                                     "hold_correction", "noise_model")})
-                out.append(e.fit(rec, s, nonlinear, g_model=g_model))
+        for rec, s in zip(records, sines):
+            e = LinearEstimator(**{k: getattr(est0, k) for k in ("method", "harmonic", "k_max", "confidence",
+                                                                 "hold_correction", "noise_model",
+                                                                 "propagate_stage1")})
+            out.append(e.fit(rec, s, nonlinear))
         return out
 
     ests = one_pass()
-    if parametric and any(e.input_distortion_ > 0 for e in ests):
-        # second pass: the pre-compensated input's harmonics reach w through G(j k omega) (a
-        # Backlash-Inverse plant); take G there from a first-pass parametric fit
+    has_cov = getattr(nonlinear, "cov", None) is not None and np.size(getattr(nonlinear, "cov")) > 0
+    if parametric and (has_cov or any(e.input_distortion_ > 0 for e in ests)):
+        # second pass: (a) the pre-compensated input's harmonics reach w through G(j k omega) (a
+        # Backlash-Inverse plant, or a perturbed stage 1); (b) the stage 1 uncertainty is propagated.
+        # Both need G at the harmonics: taken from a first-pass parametric fit.
+        g_model = None
         try:
             ph = unwrap_phase(w, [e.phase_ for e in ests])
             g = np.array([e.gain_ for e in ests])
             first = fit_rational(w, g * np.exp(-1j * ph), np.array([e.cov_ for e in ests]), gain=g, phase=ph,
                                  max_order=max_order, fit_delay=fit_delay)
-            ests = one_pass(first.freqresp)
+            g_model = first.freqresp
         except HwidError:
             pass
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ExtrapolationWarning)     # the first pass has warned already
+            for e in ests:
+                if g_model is not None and e.input_distortion_ > 0:
+                    e.refit(nonlinear, g_model)
+                if has_cov and getattr(est0, "propagate_stage1", True):
+                    e.add_stage1_uncertainty(nonlinear, g_model)
     gain = np.array([e.gain_ for e in ests])
     phase_raw = np.array([e.phase_ for e in ests])
     phase = unwrap_phase(w, phase_raw)
