@@ -175,6 +175,20 @@ def report(directory: Path = typer.Argument(..., help="Run directory (simulation
     typer.echo(f"wrote {write_report(directory)}")
 
 
+@app.command()
+def diagnose(config: Path = typer.Argument(..., help="Config YAML: its plant is the real side."),
+             model: Optional[Path] = typer.Option(None, "--model", help="Sim side: a plant YAML (kind "
+                                                  "hammerstein_wiener) or an 'hwid run' directory; "
+                                                  "default: identify it from the plant first."),
+             out: Path = typer.Option(..., "--out", help="Output directory (diagnosis.h5, rig_journal/)."),
+             json_out: Optional[Path] = typer.Option(None, "--json", help="JSON summary (default OUT/diagnosis.json).")):
+    """Where and why the plant and the model part: names the unmodelled effect of the catalogue."""
+    from hwid import config as C
+    from hwid.diagnose import diagnose as run
+    cfg = C.load(config)
+    run(cfg, _out_dir(out), model=model, json_path=json_out, echo=typer.echo)
+
+
 def main(argv: Optional[list[str]] = None) -> None:
     """Entry point: run the app, map user errors to one line and exit code 2."""
     try:

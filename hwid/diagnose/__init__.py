@@ -1,0 +1,331 @@
+"""``hwid diagnose``: where and why a plant and a model part, and what to add to the simulator.
+
+The "real" side is the plant of the config (usually ``plant.kind: external``); the "sim" side is a
+model: a plant YAML (``kind: hammerstein_wiener``), a directory written by ``hwid run``
+(``nonlinear.h5`` + ``linear.h5``), or, when none is given, the model hwid identifies from the same
+plant with the config's protocols (stage 1, stage 2 and the parametric G).
+
+Steps (:func:`diagnose`):
+
+1. run validation experiments of the diagnosis's own design on the plant
+   (:mod:`hwid.diagnose.experiments`), journalled so a rerun reuses them;
+2. simulate the model on them; estimate the noise floor from repeats and test whether the gap is
+   more than noise (:mod:`hwid.diagnose.gap`);
+3. say where the gap lies: per experiment, per region, frequencies, trend;
+4. fit every catalogue effect (:mod:`hwid.diagnose.effects`) on the fit experiments and score it on
+   the validation experiments; rank; verdict (:mod:`hwid.diagnose.rank`);
+5. write ``OUT/diagnosis.h5`` (records, residuals before/after, ranking) and the JSON summary.
+
+For the report: :func:`load_diagnosis`, :func:`plot_residual_map`, :func:`plot_ranking`.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from hwid import HwidError
+from hwid.diagnose.effects import BLOCK, CATALOGUE, ModelSim, Scale, catalogue
+from hwid.diagnose.figures import load_diagnosis, plot_ranking, plot_residual_map
+
+__all__ = ["diagnose", "load_model", "load_diagnosis", "plot_residual_map", "plot_ranking", "CATALOGUE",
+           "BLOCK"]
+
+
+# -------------------------------------------------------------------------------------- the sim side
+
+def model_from_results(nl, lin):
+    """The normalised HW model of a stage 1 result and a stage 2 result (its parametric G)."""
+    from hwid.blocks.linear import LinearBlock
+    from hwid.blocks.static import PolynomialH
+    from hwid.model import HWModel
+    par = dict(getattr(lin, "parametric", None) or {})
+    num = np.atleast_1d(np.asarray(par.get("num", []), float))
+    den = np.atleast_1d(np.asarray(par.get("den", []), float))
+    if num.size == 0 or den.size == 0 or not np.all(np.isfinite(num)) or not np.all(np.isfinite(den)):
+        raise HwidError("the stage 2 result has no parametric G(s) "
+                        f"({par.get('error', 'no num/den')}); diagnose needs one to simulate the model")
+    num = np.trim_zeros(num, "f")
+    den = np.trim_zeros(den, "f")
+    return HWModel(nl.input_nonlinearity(), LinearBlock(tuple(num.tolist()), tuple(den.tolist()),
+                                                        float(par.get("delay", 0.0) or 0.0)),
+                   PolynomialH(tuple(float(c) for c in np.asarray(nl.h_coefficients, float))))
+
+
+def _model_from_yaml(path: Path):
+    import yaml
+    from pydantic import ValidationError
+    from hwid import config as C
+    from hwid.model import from_config
+    try:
+        data = yaml.load(path.read_text(encoding="utf-8"), Loader=C._SafeLoader)  # noqa: S506 - SafeLoader subclass
+    except (OSError, UnicodeDecodeError) as err:
+        raise HwidError(f"--model {path}: cannot read it ({type(err).__name__})") from None
+    except yaml.YAMLError:
+        raise HwidError(f"--model {path}: malformed YAML") from None
+    if isinstance(data, dict) and "plant" in data:
+        data = data["plant"]
+    if not isinstance(data, dict):
+        raise HwidError(f"--model {path}: expected a plant (kind: hammerstein_wiener) or a config with one")
+    try:
+        pc = C.PlantCfg.model_validate(data)
+    except ValidationError as err:
+        where, why = C._first_error(err)
+        raise HwidError(f"--model {path}: plant.{where}: {why}") from None
+    if pc.kind != "hammerstein_wiener":
+        raise HwidError(f"--model {path}: the model must be a plant of kind hammerstein_wiener, "
+                        f"not {pc.kind}")
+    return from_config(pc)
+
+
+def load_model(spec, cfg=None, plant=None, out_dir=None, echo=print):
+    """The sim-side model and a description of where it came from.
+
+    ``spec``: a YAML file, a ``hwid run`` directory, or None (identify it from ``plant`` with the
+    config's protocols; the results go to ``out_dir`` as ``nonlinear.h5`` and ``linear.h5``).
+    """
+    if spec is not None:
+        p = Path(spec)
+        if p.is_dir():
+            from hwid.identify.linear import load_linear
+            from hwid.identify.nonlinear import load_nonlinear
+            for name in ("nonlinear.h5", "linear.h5"):
+                if not (p / name).exists():
+                    raise HwidError(f"--model {p}: no {name} in that directory (write one with 'hwid run')")
+            return model_from_results(load_nonlinear(p / "nonlinear.h5"), load_linear(p / "linear.h5")), \
+                {"source": "results", "path": str(p)}
+        if not p.exists():
+            raise HwidError(f"--model {p}: no such file or directory")
+        return _model_from_yaml(p), {"source": "yaml", "path": str(p)}
+    if cfg.protocols.staircase is None or cfg.protocols.sine is None:
+        raise HwidError(f"{cfg.source_path}: without --model, diagnose identifies the model first and "
+                        f"needs both protocols.staircase and protocols.sine")
+    try:
+        from hwid.identify.linear import identify_linear, save_linear
+        from hwid.identify.nonlinear import identify_nonlinear, save_nonlinear
+    except ImportError as err:
+        raise HwidError(f"identification is not available in this installation ({err}); give --model") from None
+    t0 = time.perf_counter()
+    nl, nl_rec = identify_nonlinear(cfg, plant=plant)
+    lin, lin_rec = identify_linear(cfg, nl, plant=plant)
+    if out_dir is not None:
+        save_nonlinear(Path(out_dir) / "nonlinear.h5", cfg, nl, nl_rec)
+        save_linear(Path(out_dir) / "linear.h5", cfg, lin, lin_rec)
+    echo(f"identified the model ({time.perf_counter() - t0:.1f} s): {nl.type}, d+ = {nl.d_plus:.4g}, "
+         f"d- = {nl.d_minus:.4g}, S^d = {nl.slope_down:.4g}, h degree {nl.degree}, "
+         f"G = {list(np.round(lin.parametric.get('num', []), 4))}/{list(np.round(lin.parametric.get('den', []), 4))}")
+    return model_from_results(nl, lin), {"source": "identified"}
+
+
+# ------------------------------------------------------------------------------------------ diagnose
+
+def _scale(d, model, exps, sim_fit, sim_val) -> Scale:
+    us = np.concatenate([e.u for e in exps])
+    xs = np.concatenate(list(sim_fit.x) + list(sim_val.x))
+    vs = np.concatenate(list(sim_fit.v) + list(sim_val.v))
+    return Scale(d.dt, float(us.min()), float(us.max()), float(xs.min()), float(xs.max()),
+                 float(np.max(np.abs(vs))), d.settle_s, d.omega_c, float(max(e.n for e in exps) * d.dt))
+
+
+def _where_block(verdict_effect, cands, nf, regions_stats, test) -> str:
+    if verdict_effect == "none":
+        return "none"
+    if verdict_effect in BLOCK:
+        return BLOCK[verdict_effect]
+    # unexplained: the non-repeating part, else the block of the best (partial) explanation,
+    # else from where the excess lies
+    if nf.slow_z > 10 and nf.slow_rms ** 2 > 0.5 * max(test.ratio - 1, 0) * nf.sigma ** 2:
+        return "noise"
+    eligible = [c for c in cands if c.effect != "drift" or nf.slow_z > 10]
+    best = eligible[0] if eligible else None
+    if best is not None and best.explained_fraction >= 0.2:
+        return best.block
+    lv = regions_stats.get("levels", {}).get("gap_over_noise", 1.0)
+    dyn = max(regions_stats.get(k, {}).get("gap_over_noise", 1.0) for k in ("dynamic", "transients", "near reversals"))
+    return "linear" if lv < 1.2 and dyn > 1.5 else "output" if lv >= 1.2 else "input"
+
+
+def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None) -> dict:
+    """Diagnose the gap between the plant of ``cfg`` and a model; write ``OUT/diagnosis.h5`` and the
+    JSON summary (``json_path``, default ``OUT/diagnosis.json``); return the summary.
+
+    Parameters
+    ----------
+    cfg : hwid.config.Config
+    out_dir : path
+        Output directory (``rig_journal/`` for resuming, ``diagnosis.h5``, ``diagnosis.json``).
+    model : path or None
+        The sim side (YAML plant, ``hwid run`` directory), or None to identify it first.
+    effects : sequence of str, optional
+        Catalogue subset to try (default: all).
+    """
+    from hwid.diagnose import experiments as X
+    from hwid.diagnose import gap as Gp
+    from hwid.diagnose import rank as R
+    from hwid.plant import make_plant
+    from hwid.results import write_json
+
+    t_start = time.perf_counter()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    plant = make_plant(cfg, journal_dir=out / "rig_journal")
+    calls0 = _plant_calls(plant)
+    sim_model, origin = load_model(model, cfg, plant, out, echo)
+    calls_id = _plant_calls(plant)
+    t_model = time.perf_counter() - t_start
+
+    d = X.design_from(cfg, sim_model)
+    exps = X.design(cfg, sim_model, d)
+    rig_s = sum(e.n for e in exps) * d.dt
+    echo(f"running {len(exps)} validation experiments ({rig_s:.0f} rig-seconds)")
+    t0 = time.perf_counter()
+    records = X.run(plant, exps)
+    t_rig = time.perf_counter() - t0
+    calls_all = _plant_calls(plant)
+
+    fit_idx = [i for i, e in enumerate(exps) if e.role == "fit"]
+    val_idx = [i for i, e in enumerate(exps) if e.role == "validation"]
+    t0 = time.perf_counter()
+    sim_fit = ModelSim(sim_model, d.dt, [exps[i].u for i in fit_idx])
+    sim_val = ModelSim(sim_model, d.dt, [exps[i].u for i in val_idx])
+    sc = _scale(d, sim_model, exps, sim_fit, sim_val)
+
+    # noise floor from the repeats
+    by_name = {e.name: (e, r) for e, r in zip(exps, records)}
+    pairs = [(r.y, by_name[e.repeat_of][1].y, e.mask) for e, r in zip(exps, records) if e.repeat_of]
+    nf = Gp.noise_floor(pairs, int(round(2 * d.settle_s / d.dt)), sc.y_width)
+
+    y_val = [records[i].y for i in val_idx]
+    m_val = [exps[i].mask for i in val_idx]
+    res_before = [y - x for y, x in zip(y_val, sim_val.x)]
+    gap_before = Gp.gap(res_before, m_val)
+    n_val = int(sum(m.sum() for m in m_val))
+    test = Gp.gap_test(gap_before, n_val, nf)
+    echo(f"gap before {gap_before:.4g}, noise floor {nf.sigma:.4g} (power ratio {test.ratio:.3g}, z {test.z:.1f}): "
+         f"{'more than noise' if test.significant else 'consistent with noise'}")
+
+    fitter = R.EffectFitter(sim_fit, [records[i].y for i in fit_idx], [exps[i].mask for i in fit_idx],
+                            sim_val, y_val, m_val, [exps[i].name for i in val_idx], sc, nf.sigma, nf.kappa)
+    effs = catalogue(sc)
+    if effects is not None:
+        unknown = [e for e in effects if e not in effs]
+        if unknown:
+            raise HwidError(f"unknown effect(s) {', '.join(unknown)}; the catalogue is {', '.join(CATALOGUE)}")
+        effs = {k: v for k, v in effs.items() if k in effects}
+    cands = R.fit_all(fitter, effs, echo=echo)
+    drift_ok = bool(nf.slow_z > 10)
+    v = R.verdict(cands, test.significant, drift_ok)
+    t_fit = time.perf_counter() - t0
+
+    val_exps = [exps[i] for i in val_idx]
+    if isinstance(v, R.Candidate):
+        name, ef, gap_after = v.effect, v.explained_fraction, v.gap_after
+        res_after = [y - x for y, x in zip(y_val, v.predictions)]
+    else:
+        name, ef, gap_after = v, 0.0, gap_before
+        res_after = res_before
+    regions_before = Gp.per_region([r[e.mask] for r, e in zip(res_before, val_exps)],
+                                   [e.region[e.mask] for e in val_exps], nf.sigma)
+    where = {
+        "experiments": _per_exp(val_exps, res_before, res_after, nf.sigma),
+        "region": Gp.main_region(regions_before) if test.significant else "nowhere (gap is noise)",
+        "frequencies": Gp.frequencies(val_exps, res_before, nf, d.dt) if test.significant else [],
+        "trend": "none (gap is noise)",
+        "regions": regions_before,
+        "repeatability": {"slow_rms": nf.slow_rms, "slow_z": nf.slow_z,
+                          "repeats_differ": drift_ok},
+    }
+    if test.significant:
+        tr = Gp.trend(val_exps, res_before, nf.sigma, d.dt)
+        where["trend"], where["trend_families"] = tr["trend"], tr["families"]
+    block = _where_block(name, cands, nf, regions_before, test)
+    summary = {
+        "verdict": {"effect": name, "block": block, "explained_fraction": float(ef)},
+        "gap_before": float(gap_before), "gap_after": float(gap_after), "noise_floor": float(nf.sigma),
+        "where": where,
+        "candidates": [{**c.to_dict(), "eligible": bool(c.effect != "drift" or drift_ok)} for c in cands],
+        "test": test.to_dict(),
+        "noise": nf.to_dict(),
+        "model": {**origin, **sim_model.to_dict()},
+        "design": {"settle_s": d.settle_s, "omega_c": d.omega_c, "u_range": [d.u_lo, d.u_hi],
+                   "amplitude": d.amplitude, "experiments": [e.name for e in exps]},
+        "cost": {"plant_calls_identification": calls_id - calls0, "plant_calls_validation": calls_all - calls_id,
+                 "plant_calls_reused": getattr(plant, "reused", 0),
+                 "rig_seconds_validation": rig_s, "rig_seconds_identification": _id_rig_seconds(cfg, origin),
+                 "seconds_model": t_model, "seconds_rig_validation": t_rig, "seconds_analysis": t_fit,
+                 "seconds_total": time.perf_counter() - t_start},
+    }
+    _write_h5(out / "diagnosis.h5", cfg, summary, exps, records, sim_fit, sim_val, fit_idx, val_idx,
+              res_before, res_after, cands)
+    write_json(Path(json_path) if json_path else out / "diagnosis.json", summary)
+    echo(f"verdict: {name} (block {block}, explained {ef:.2f}); gap {gap_before:.4g} -> {gap_after:.4g}, "
+         f"noise floor {nf.sigma:.4g}")
+    return summary
+
+
+def _plant_calls(plant) -> int:
+    return int(getattr(plant, "calls", 0))
+
+
+def _id_rig_seconds(cfg, origin) -> float:
+    if origin.get("source") != "identified":
+        return 0.0
+    from hwid import protocols
+    dt = cfg.sampling.dt
+    s = sum(st.u.size for st in protocols.staircases(cfg)) * dt
+    s += sum(sn.z.size for sn in protocols.sines(cfg)) * dt
+    return float(s)
+
+
+def _per_exp(exps, rb, ra, sigma) -> list[dict]:
+    out = []
+    for e, b, a in zip(exps, rb, ra):
+        gb, ga = _rms(b[e.mask]), _rms(a[e.mask])
+        out.append({"name": e.name, "kind": e.kind, "gap_before": gb, "gap_after": ga,
+                    "before_over_noise": gb / sigma, "after_over_noise": ga / sigma, **e.variable})
+    out.sort(key=lambda x: -x["before_over_noise"])
+    return out
+
+
+def _rms(x) -> float:
+    x = np.asarray(x, float)
+    return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
+
+
+def _write_h5(path, cfg, summary, exps, records, sim_fit, sim_val, fit_idx, val_idx, res_before, res_after, cands):
+    import json
+    from hwid.results import atomic_h5, write_provenance
+    x_model = {}
+    for j, i in enumerate(fit_idx):
+        x_model[i] = sim_fit.x[j]
+    for j, i in enumerate(val_idx):
+        x_model[i] = sim_val.x[j]
+    after = {i: records[i].y - res_after[j] for j, i in enumerate(val_idx)}
+    with atomic_h5(path) as f:
+        write_provenance(f, "diagnosis", cfg)
+        f.attrs["summary"] = json.dumps(summary, default=_plain)
+        g = f.require_group("experiments")
+        for i, (e, r) in enumerate(zip(exps, records)):
+            h = g.require_group(e.name)
+            for key, arr in (("u", r.u), ("y", r.y), ("y_model", x_model[i]), ("mask", e.mask.astype(np.int8)),
+                             ("region", e.region)):
+                h.create_dataset(key, data=np.asarray(arr), compression="gzip", shuffle=True)
+            if e.z is not None:
+                h.create_dataset("z", data=e.z, compression="gzip", shuffle=True)
+            if i in after:
+                h.create_dataset("y_after", data=after[i], compression="gzip", shuffle=True)
+            h.attrs["dt"] = r.dt
+            h.attrs["kind"] = e.kind
+            h.attrs["role"] = e.role
+            h.attrs["repeat_of"] = e.repeat_of or ""
+            h.attrs["variable"] = json.dumps(e.variable)
+        f.attrs["experiment_order"] = json.dumps([e.name for e in exps])
+
+
+def _plain(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.generic):
+        return o.item()
+    raise TypeError(type(o).__name__)

@@ -1,0 +1,518 @@
+"""The catalogue of unmodelled effects (names fixed by issue 6), each as a wrapper around an
+:class:`hwid.model.HWModel` simulation.
+
+Every effect knows
+
+* its ``block`` (``input``, ``linear``, ``output`` or ``noise``) and the stage of the model's chain
+  ``u -> [input effects] -> F -> G -> h -> [output effects] -> y`` it acts on, so the simulator
+  only recomputes what the effect changes;
+* its parameters with bounds (:meth:`Effect.bounds`) and a coarse grid of starting points
+  (:meth:`Effect.starts`), both scaled from the experiments and the model (:class:`Scale`), never
+  from any particular plant;
+* what it interacts with and must be re-estimated with it (``input_deadzone`` shifts the identified
+  borders ``d^+, d^-``: a model identified on a rig with a deadzone has absorbed it into them).
+
+``drift`` is a disturbance, not a deterministic map: its "simulation" adds to the model output a
+slowly varying offset estimated from the measured residual by a zero-phase moving average of
+width ``window_s``; its parameter count is the smoother's effective degrees of freedom.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+from scipy.ndimage import uniform_filter1d
+
+from functools import lru_cache
+
+from scipy import signal
+
+from hwid.blocks.linear import LinearBlock, _ss_run
+from hwid.model import HWModel, InputNonlinearity
+
+CATALOGUE = ("input_saturation", "rate_limit", "input_deadzone", "curved_borders", "time_delay",
+             "resonance", "sensor_lag", "sensor_saturation", "drift")
+
+
+@dataclass(frozen=True)
+class Scale:
+    """The sizes every effect's bounds and starting points are scaled from.
+
+    Attributes
+    ----------
+    dt : float
+        Sample time, s.
+    u_min, u_max : float
+        Range of the plant input over the diagnosis experiments.
+    y_min, y_max : float
+        Range of the model's output over them.
+    v_scale : float
+        Largest ``|v|`` (output of F) of the model over them.
+    settle_s : float
+        Settling time of the model's G (2 % of the step response), s.
+    omega_c : float
+        Bandwidth of G (-3 dB), rad/s.
+    duration_s : float
+        Longest experiment, s.
+    """
+
+    dt: float
+    u_min: float
+    u_max: float
+    y_min: float
+    y_max: float
+    v_scale: float
+    settle_s: float
+    omega_c: float
+    duration_s: float
+
+    @property
+    def u_width(self) -> float:
+        return max(self.u_max - self.u_min, 1e-12)
+
+    @property
+    def y_width(self) -> float:
+        return max(self.y_max - self.y_min, 1e-12)
+
+
+# ------------------------------------------------------------------------------ signal primitives
+
+@njit(cache=True)
+def _rate_limit(u, step, u0):
+    out = np.empty_like(u)
+    prev = u0
+    for k in range(u.shape[0]):
+        d = u[k] - prev
+        if d > step:
+            d = step
+        elif d < -step:
+            d = -step
+        prev = prev + d
+        out[k] = prev
+    return out
+
+
+@njit(cache=True)
+def _play_arrays(lo, hi, v0):
+    out = np.empty_like(lo)
+    prev = v0
+    for k in range(lo.shape[0]):
+        if prev < lo[k]:
+            prev = lo[k]
+        elif prev > hi[k]:
+            prev = hi[k]
+        out[k] = prev
+    return out
+
+
+@njit(cache=True)
+def _direction_arrays(z, up, dn, u0):
+    out = np.empty_like(z)
+    prev = u0
+    for k in range(z.shape[0]):
+        if k > 0:
+            dz = z[k] - z[k - 1]
+            if dz > 0.0:
+                prev = up[k]
+            elif dz < 0.0:
+                prev = dn[k]
+        out[k] = prev
+    return out
+
+
+def rate_limited(u, rate: float, dt: float) -> np.ndarray:
+    """An actuator slewing at most ``rate`` units/s, starting at ``u[0]``."""
+    u = np.ascontiguousarray(u, float)
+    return _rate_limit(u, float(rate) * dt, float(u[0])) if u.size else u.copy()
+
+
+def deadzone(u, delta: float) -> np.ndarray:
+    """0 for ``|u| < delta``, ``u - delta sign(u)`` beyond."""
+    u = np.asarray(u, float)
+    return np.sign(u) * np.maximum(np.abs(u) - delta, 0.0)
+
+
+def first_order(x, tau: float, dt: float) -> np.ndarray:
+    """``1/(tau s + 1)`` applied to ``x`` (exact for a zero-order-held input), from equilibrium."""
+    if tau <= 0:
+        return np.asarray(x, float)
+    return simulate_linear(LinearBlock((1.0,), (float(tau), 1.0)), x, dt)
+
+
+def smooth(r, width: int) -> np.ndarray:
+    """Zero-phase moving average of ``width`` samples (edges: nearest value)."""
+    r = np.asarray(r, float)
+    if width <= 1 or r.size == 0:
+        return r.copy()
+    return uniform_filter1d(r, size=int(min(width, r.size)), mode="nearest")
+
+
+@njit(cache=True)
+def _expm(M):
+    """Matrix exponential of a small matrix: scaling and squaring of an 18-term Taylor series
+    (error below 1e-16 once the norm is scaled under 1/2)."""
+    n = M.shape[0]
+    nrm = np.max(np.sum(np.abs(M), axis=1))
+    s = 0
+    while nrm > 0.5:
+        nrm /= 2.0
+        s += 1
+    A = M / (2.0 ** s)
+    E = np.eye(n)
+    term = np.eye(n)
+    for k in range(1, 19):
+        term = term @ A / k
+        E = E + term
+    for _ in range(s):
+        E = E @ E
+    return E
+
+
+def _int_expm(A, B, h):
+    n = A.shape[0]
+    M = np.zeros((n + 1, n + 1))
+    M[:n, :n] = A
+    M[:n, n] = B
+    E = _expm(M * h)
+    return E[:n, :n], E[:n, n]
+
+
+@lru_cache(maxsize=256)
+def _discretise(num: tuple, den: tuple, delay: float, dt: float):
+    A, B, C, D = signal.tf2ss(np.asarray(num, float), np.asarray(den, float))
+    B = np.ascontiguousarray(B[:, 0])
+    C = np.ascontiguousarray(C[0])
+    D = float(D[0, 0]) if np.size(D) else 0.0
+    n = A.shape[0]
+    lag = int(np.floor(delay / dt + 1e-12))
+    frac = delay - lag * dt
+    if frac < 1e-12 * dt:
+        frac = 0.0
+    if n == 0:
+        return n, lag, frac, None, None, None, C, D
+    A = np.ascontiguousarray(A)
+    Phi, Gfull = _int_expm(A, B, dt)
+    if frac == 0.0:
+        G1, G0 = Gfull, np.zeros(n)
+    else:
+        P1, G1 = _int_expm(A, B, dt - frac)
+        _, Gf = _int_expm(A, B, frac)
+        G0 = P1 @ Gf
+    return n, lag, frac, np.ascontiguousarray(Phi), np.ascontiguousarray(G1), np.ascontiguousarray(G0), C, D
+
+
+def simulate_linear(G: LinearBlock, v, dt: float) -> np.ndarray:
+    """:meth:`LinearBlock.simulate` (exact ZOH with fractional delay, from the equilibrium of
+    ``v[0]``) with the discretisation cached: the fits simulate the same G on many experiments."""
+    v = np.ascontiguousarray(v, dtype=float)
+    if v.size == 0:
+        return v.copy()
+    n, lag, frac, Phi, G1, G0, C, D = _discretise(tuple(float(c) for c in G.num), tuple(float(c) for c in G.den),
+                                                  float(G.delay), float(dt))
+    if n == 0:
+        return D * v
+    x0 = np.linalg.solve(np.eye(n) - Phi, (G1 + G0) * v[0])
+    vd = np.concatenate([np.full(lag, v[0]), v[: v.size - lag]]) if lag else v
+    if frac == 0.0:
+        return _ss_run(vd, Phi, G1, G0, C, D, x0, vd[0])
+    w = _ss_run(vd, Phi, G1, G0, C, 0.0, x0, vd[0])
+    if D != 0.0:
+        w = w + D * np.concatenate([[vd[0]], vd[:-1]])
+    return w
+
+
+# ------------------------------------------------------------------------------------ the simulator
+
+class ModelSim:
+    """Simulates ``model`` on a list of experiments, caching the intermediate signals ``v, w, x``
+    so an effect only recomputes the part of the chain after the stage it changes.
+
+    Every experiment is simulated from the model's default initial state; the diagnosis
+    experiments start with a lead-in (excluded from every gap) that makes the state irrelevant.
+    """
+
+    def __init__(self, model: HWModel, dt: float, inputs):
+        self.model = model
+        self.dt = float(dt)
+        self.inputs = [np.ascontiguousarray(u, float) for u in inputs]
+        self.v = [model.input.apply(u) for u in self.inputs]
+        self.w = [simulate_linear(model.linear, v, self.dt) for v in self.v]
+        self.x = [model.output(w) for w in self.w]
+
+    def from_input(self, u, F: InputNonlinearity | None = None, i: int | None = None) -> np.ndarray:
+        v = (F or self.model.input).apply(u)
+        return self.from_v(v)
+
+    def from_v(self, v, G: LinearBlock | None = None) -> np.ndarray:
+        return self.model.output(simulate_linear(G or self.model.linear, v, self.dt))
+
+
+# ------------------------------------------------------------------------------------------ effects
+
+@dataclass(frozen=True)
+class Effect:
+    """One catalogue entry: ``simulate(sim, theta, i)`` gives the model output of experiment ``i``
+    with the effect added, ``theta`` in the order of ``params``."""
+
+    name: str
+    block: str
+    params: tuple[str, ...]
+    description: str = ""
+    disturbance: bool = False        # needs the measured output (drift)
+    interacts: tuple[str, ...] = field(default=())
+
+    def bounds(self, sc: Scale) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def starts(self, sc: Scale) -> list[np.ndarray]:
+        raise NotImplementedError
+
+    def simulate(self, sim: ModelSim, theta, i: int) -> np.ndarray:
+        raise NotImplementedError
+
+    def log_params(self) -> tuple[bool, ...]:
+        """Which parameters are fitted on a log scale."""
+        return (False,) * len(self.params)
+
+
+def _grid(*axes) -> list[np.ndarray]:
+    mesh = np.meshgrid(*axes, indexing="ij")
+    return [np.array(p, float) for p in zip(*(m.ravel() for m in mesh))]
+
+
+class InputSaturation(Effect):
+    def __init__(self):
+        super().__init__("input_saturation", "input", ("u_lo", "u_hi"),
+                         "the actuator clips u to [u_lo, u_hi] before F")
+
+    def bounds(self, sc):
+        c, W = 0.5 * (sc.u_min + sc.u_max), sc.u_width
+        return np.array([sc.u_min - 0.05 * W, c]), np.array([c, sc.u_max + 0.05 * W])
+
+    def starts(self, sc):
+        lo, hi = self.bounds(sc)
+        return _grid(np.linspace(lo[0], lo[1], 7)[:-1], np.linspace(hi[0], hi[1], 7)[1:])
+
+    def simulate(self, sim, theta, i):
+        return sim.from_input(np.clip(sim.inputs[i], theta[0], theta[1]))
+
+
+class RateLimit(Effect):
+    def __init__(self):
+        super().__init__("rate_limit", "input", ("rate",), "the actuator slews at most `rate` units/s")
+
+    def log_params(self):
+        return (True,)
+
+    def bounds(self, sc):
+        return np.array([sc.u_width / (20 * sc.settle_s)]), np.array([sc.u_width / sc.dt])
+
+    def starts(self, sc):
+        lo, hi = self.bounds(sc)
+        return [np.array([r]) for r in np.geomspace(lo[0], hi[0], 14)]
+
+    def simulate(self, sim, theta, i):
+        return sim.from_input(rate_limited(sim.inputs[i], theta[0], sim.dt))
+
+
+class InputDeadzone(Effect):
+    """``u -> 0`` for ``|u| < delta``, ``u - delta sign(u)`` beyond, before F.
+
+    Interaction: a model identified on a rig with a deadzone has absorbed it into its borders
+    (``d^+`` grows by ``delta``, ``d^-`` shrinks by ``delta``, scaled by the slopes for a
+    Backlash-Inverse). ``absorbed`` in [0, 1] takes that share back out of the borders, so the
+    deadzone never widens the model's play: ``absorbed = 0`` for a trusted simulator, 1 for a model
+    identified on the same rig.
+    """
+
+    def __init__(self):
+        super().__init__("input_deadzone", "input", ("delta", "absorbed"),
+                         "the actuator does not move for |u| < delta; the borders d+, d- are re-estimated",
+                         interacts=("d_plus", "d_minus"))
+
+    def bounds(self, sc):
+        a = max(abs(sc.u_min), abs(sc.u_max))
+        return np.array([0.0, 0.0]), np.array([0.4 * a, 1.0])
+
+    def starts(self, sc):
+        lo, hi = self.bounds(sc)
+        return _grid(np.linspace(0, hi[0], 10)[1:], [0.0, 1.0])
+
+    def simulate(self, sim, theta, i):
+        F = sim.model.input
+        delta, a = float(theta[0]), float(theta[1])
+        kp = 1.0 if F.type == "backlash" else 1.0 / F.slope_up
+        km = 1.0 if F.type == "backlash" else 1.0 / F.slope_down
+        dp, dm = F.d_plus - a * kp * delta, F.d_minus + a * km * delta
+        if dp <= dm:
+            dp = dm = 0.5 * (dp + dm)
+            dp += 1e-9
+        F2 = InputNonlinearity(F.type, F.slope_up, F.slope_down, dp, dm)
+        return sim.from_input(deadzone(sim.inputs[i], delta), F2)
+
+
+class CurvedBorders(Effect):
+    """Each border of F bends: ``border(u) + k (c2 s^2 + c3 s^3)`` with ``s = (u - u_c)/W`` the
+    input relative to the middle of the working range, ``k`` the border's scale (``S W``)."""
+
+    def __init__(self):
+        super().__init__("curved_borders", "input", ("c2_up", "c3_up", "c2_down", "c3_down"),
+                         "the borders of F are cubic curves instead of straight lines")
+
+    def bounds(self, sc):
+        return np.full(4, -0.6), np.full(4, 0.6)
+
+    def starts(self, sc):
+        out = [np.zeros(4)]
+        for a, b in ((0.1, 0.0), (-0.1, 0.0), (0.0, 0.1), (0.0, -0.1), (0.1, 0.1), (-0.1, -0.1)):
+            out.append(np.array([a, b, a, b]))
+        return out
+
+    def simulate(self, sim, theta, i):
+        F = sim.model.input
+        u = sim.inputs[i]
+        sc = self._scale
+        s = (u - sc[0]) / sc[1]
+        if F.type == "backlash":
+            up = F.ascending(u) + F.slope_up * sc[1] * (theta[0] * s ** 2 + theta[1] * s ** 3)
+            dn = F.descending(u) + F.slope_down * sc[1] * (theta[2] * s ** 2 + theta[3] * s ** 3)
+            v0 = float(np.clip(0.0, up[0], dn[0])) if dn[0] >= up[0] else 0.5 * (up[0] + dn[0])
+            v = _play_arrays(np.ascontiguousarray(up), np.ascontiguousarray(np.maximum(dn, up)), v0)
+        else:
+            up = F.ascending(u) + sc[1] / F.slope_up * (theta[0] * s ** 2 + theta[1] * s ** 3)
+            dn = F.descending(u) + sc[1] / F.slope_down * (theta[2] * s ** 2 + theta[3] * s ** 3)
+            v = _direction_arrays(u, np.ascontiguousarray(up), np.ascontiguousarray(dn), 0.5 * (up[0] + dn[0]))
+        return sim.from_v(v)
+
+    _scale = (0.0, 1.0)
+
+    def with_scale(self, sc: Scale) -> "CurvedBorders":
+        e = CurvedBorders()
+        object.__setattr__(e, "_scale", (0.5 * (sc.u_min + sc.u_max), 0.5 * sc.u_width))
+        return e
+
+
+class TimeDelay(Effect):
+    def __init__(self):
+        super().__init__("time_delay", "linear", ("delay_s",), "a transport delay added to G")
+
+    def bounds(self, sc):
+        return np.array([0.0]), np.array([max(0.5 * sc.settle_s, 5 * sc.dt)])
+
+    def starts(self, sc):
+        hi = self.bounds(sc)[1][0]
+        return [np.array([d]) for d in np.linspace(0, hi, 21)[1:]]
+
+    def simulate(self, sim, theta, i):
+        G = sim.model.linear
+        return sim.from_v(sim.v[i], LinearBlock(G.num, G.den, G.delay + max(float(theta[0]), 0.0)))
+
+
+class Resonance(Effect):
+    """``G(s) wn^2/(s^2 + 2 zeta wn s + wn^2)``: a lightly damped mode, unit static gain."""
+
+    def __init__(self):
+        super().__init__("resonance", "linear", ("omega_n", "zeta"), "a lightly damped mode of G")
+
+    def log_params(self):
+        return (True, True)
+
+    def bounds(self, sc):
+        nyq = np.pi / sc.dt
+        return np.array([0.3 * sc.omega_c, 0.005]), np.array([0.5 * nyq, 0.7])
+
+    def starts(self, sc):
+        lo, hi = self.bounds(sc)
+        return _grid(np.geomspace(lo[0], hi[0], 16), [0.03, 0.1, 0.3])
+
+    def simulate(self, sim, theta, i):
+        G = sim.model.linear
+        wn, z = float(theta[0]), float(theta[1])
+        den = np.polymul(G.den, [1.0, 2 * z * wn, wn * wn])
+        num = np.polymul(G.num, [wn * wn])
+        return sim.from_v(sim.v[i], LinearBlock(tuple(num), tuple(den), G.delay))
+
+
+class SensorLag(Effect):
+    def __init__(self):
+        super().__init__("sensor_lag", "output", ("tau_s",), "first-order sensor dynamics 1/(tau s + 1) after h")
+
+    def log_params(self):
+        return (True,)
+
+    def bounds(self, sc):
+        return np.array([0.5 * sc.dt]), np.array([2.0 * sc.settle_s])
+
+    def starts(self, sc):
+        lo, hi = self.bounds(sc)
+        return [np.array([t]) for t in np.geomspace(lo[0], hi[0], 16)]
+
+    def simulate(self, sim, theta, i):
+        return first_order(sim.x[i], float(theta[0]), sim.dt)
+
+
+class SensorSaturation(Effect):
+    """The sensor clips y to ``[y_lo, y_hi]`` (``±y_max`` when symmetric)."""
+
+    def __init__(self):
+        super().__init__("sensor_saturation", "output", ("y_lo", "y_hi"), "the sensor clips y")
+
+    def bounds(self, sc):
+        c, R = 0.5 * (sc.y_min + sc.y_max), sc.y_width
+        return np.array([sc.y_min - 0.05 * R, c]), np.array([c, sc.y_max + 0.05 * R])
+
+    def starts(self, sc):
+        lo, hi = self.bounds(sc)
+        return _grid(np.linspace(lo[0], lo[1], 7)[:-1], np.linspace(hi[0], hi[1], 7)[1:])
+
+    def simulate(self, sim, theta, i):
+        return np.clip(sim.x[i], theta[0], theta[1])
+
+
+class Drift(Effect):
+    """A slow additive offset in y, estimated from the measured residual by a zero-phase moving
+    average of ``window_s`` seconds (a disturbance model: its state comes from each experiment's
+    own output, its one parameter from the fit data)."""
+
+    def __init__(self):
+        super().__init__("drift", "noise", ("window_s",), "a slow additive offset wandering in y",
+                         disturbance=True)
+
+    def log_params(self):
+        return (True,)
+
+    def bounds(self, sc):
+        return np.array([0.5 * sc.settle_s]), np.array([max(4 * sc.duration_s, sc.settle_s)])
+
+    def starts(self, sc):
+        lo, hi = self.bounds(sc)
+        return [np.array([t]) for t in np.geomspace(lo[0], hi[0], 12)]
+
+    def width(self, theta, dt) -> int:
+        return max(int(round(float(theta[0]) / dt)), 1)
+
+    def simulate(self, sim, theta, i, y=None, mask=None):
+        x = sim.x[i]
+        if y is None:
+            return x
+        r = np.where(mask, y - x, 0.0) if mask is not None else y - x
+        wgt = mask.astype(float) if mask is not None else np.ones_like(x)
+        m = self.width(theta, sim.dt)
+        num, den = smooth(r, m), smooth(wgt, m)
+        return x + np.where(den > 1e-9, num / np.maximum(den, 1e-9), 0.0)
+
+    def dof(self, theta, n_samples: int, dt: float) -> float:
+        """Effective degrees of freedom of the smoother (trace of its hat matrix) on n samples."""
+        return float(n_samples) / self.width(theta, dt)
+
+
+def catalogue(sc: Scale | None = None) -> dict[str, Effect]:
+    """Every catalogue effect by name (``curved_borders`` scaled to the working range)."""
+    cb = CurvedBorders().with_scale(sc) if sc is not None else CurvedBorders()
+    effs = [InputSaturation(), RateLimit(), InputDeadzone(), cb, TimeDelay(), Resonance(),
+            SensorLag(), SensorSaturation(), Drift()]
+    return {e.name: e for e in effs}
+
+
+BLOCK = {name: e.block for name, e in catalogue().items()}

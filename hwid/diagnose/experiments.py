@@ -1,0 +1,321 @@
+"""Validation experiments of the diagnosis, designed to expose the catalogue's effects.
+
+Two sets of the same kinds, with different levels, rates, frequencies, amplitudes and phases:
+``fit`` (the effects' parameters are fitted on it) and ``validation`` (the gaps are measured on it,
+data the fits never saw). Kinds, and what each exposes:
+
+=============  ====================================================================================
+``levels``     staircase up and down over the identification range widened by 15 % (input and
+               sensor saturation, curved borders, steady-state mismatches)
+``steps``      fast steps of several sizes (rate limit, sensor lag, delay)
+``ramp``       triangles at several rates, one experiment per rate (rate limit: trend with rate)
+``small``      fine staircases through ``u = 0`` in both directions (input deadzone)
+``hold``       one step and a long hold (drift, sensor lag)
+``sine``       ``z = A sin(omega t)`` through the model's pre-compensator (Fig. 8) at several
+               amplitudes and frequencies up to 16x the bandwidth (resonance, delay, sensor lag)
+``broadband``  a random-phase multisine through the pre-compensator, lines log-spaced from
+               bandwidth/5 to 30x the bandwidth
+=============  ====================================================================================
+
+Every experiment starts with a lead-in (the far end of the range briefly, then its first value for
+1.5 settling times) that puts the input nonlinearity on a known border and lets G settle whatever
+state the rig was left in; the lead-in is never scored. Three validation experiments are repeated at
+the end of the session (noise floor, and whether the gap is reproducible). Everything is scaled
+from the sim-side model (settling time, bandwidth) and the config (identification range, sine
+amplitude), and is deterministic given the config's seed, so a rerun finds its calls in the rig
+journal.
+"""
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hwid.model import HWModel
+
+# region codes of every sample (``Experiment.region``)
+REGIONS = ("lead_in", "levels", "transients", "near reversals", "extremes", "small moves", "dynamic")
+
+
+@dataclass
+class Experiment:
+    """One diagnosis experiment: input ``u`` (after the pre-compensator for sines/broadband),
+    the pre-compensator's input ``z`` if any, which samples are scored, and labels."""
+
+    name: str
+    kind: str
+    role: str                         # "fit" | "validation"
+    u: np.ndarray
+    mask: np.ndarray                  # scored samples (lead-in excluded)
+    z: np.ndarray | None = None
+    variable: dict = field(default_factory=dict)   # amplitude / rate / omega of the experiment
+    repeat_of: str | None = None
+    region: np.ndarray | None = None  # int8 codes into REGIONS
+
+    @property
+    def n(self) -> int:
+        return self.u.size
+
+
+@dataclass(frozen=True)
+class Design:
+    """Sizes the experiments are built from."""
+
+    dt: float
+    u_lo: float                       # identification range of u
+    u_hi: float
+    amplitude: float                  # sine amplitude in z (pre-compensator input) units
+    settle_s: float
+    omega_c: float
+    seed: int
+
+    @property
+    def width(self) -> float:
+        return self.u_hi - self.u_lo
+
+    @property
+    def centre(self) -> float:
+        return 0.5 * (self.u_lo + self.u_hi)
+
+
+def settling_time(model: HWModel) -> float:
+    """2 % settling time of G, s (from its slowest pole and its delay)."""
+    p = model.linear.poles()
+    slow = np.min(np.abs(p.real)) if p.size else np.inf
+    return float(4.0 / slow + model.linear.delay) if np.isfinite(slow) and slow > 0 else float(model.linear.delay)
+
+
+def bandwidth(model: HWModel, dt: float) -> float:
+    """-3 dB frequency of G/G(0), rad/s (capped below the Nyquist frequency)."""
+    G = model.linear
+    nyq = np.pi / dt
+    w = np.geomspace(1e-4 * nyq, nyq, 2000)
+    mag = np.abs(G.freqresp(w) / G.dc_gain)
+    below = np.nonzero(mag < 1 / np.sqrt(2))[0]
+    return float(w[below[0]]) if below.size else float(0.5 * nyq)
+
+
+def design_from(cfg, model: HWModel) -> Design:
+    """Scales from the config's protocols and the sim-side model."""
+    dt = cfg.sampling.dt
+    st, sn = cfg.protocols.staircase, cfg.protocols.sine
+    F = model.input
+    if st is not None:
+        lv = list(st.levels_up) + list(st.levels_down)
+        lo, hi = float(min(lv)), float(max(lv))
+    else:
+        z = np.array([-sn.amplitude, sn.amplitude, -sn.amplitude])
+        u = F.precompensator(np.repeat(z, 3))
+        lo, hi = float(u.min()), float(u.max())
+    if sn is not None:
+        amp = float(sn.amplitude)
+    else:
+        amp = 0.4 * float(abs(F.ascending(hi) - F.descending(lo)))
+    settle = max(settling_time(model), 20 * dt)
+    return Design(dt, lo, hi, amp, settle, bandwidth(model, dt), int(cfg.seed))
+
+
+def _n(seconds: float, dt: float) -> int:
+    return max(int(round(seconds / dt)), 1)
+
+
+def _levels(values, hold_s, dt) -> np.ndarray:
+    return np.repeat(np.asarray(values, float), _n(hold_s, dt))
+
+
+def _lead_in(d: Design, first: float, far: float) -> np.ndarray:
+    return np.concatenate([np.full(_n(max(d.settle_s / 4, 20 * d.dt), d.dt), far),
+                           np.full(_n(1.5 * d.settle_s, d.dt), first)])
+
+
+def _exp(d: Design, name, kind, role, body, lead, z=None, zlead=None, **variable) -> Experiment:
+    u = np.concatenate([lead, body])
+    mask = np.zeros(u.size, bool)
+    mask[lead.size:] = True
+    if z is not None:
+        z = np.concatenate([zlead, z])
+    return Experiment(name, kind, role, u, mask, z, variable)
+
+
+def _precomp(F, z: np.ndarray) -> np.ndarray:
+    return F.precompensator(z)
+
+
+def _z_sweep(d: Design, a: float) -> np.ndarray:
+    """``z`` from ``+a`` down to ``-a``: through the pre-compensator F ends on its descending border
+    whatever state the rig was in."""
+    k = _n(max(d.settle_s / 8, 10 * d.dt), d.dt)
+    return np.concatenate([np.full(k, a), np.linspace(a, -a, k)])
+
+
+def _sine_exp(d: Design, F, name, role, amp, omega, seed_phase=0.0) -> Experiment:
+    dt = d.dt
+    period = 2 * np.pi / omega
+    n_lead = _n(max(1.5 * d.settle_s, period), dt)
+    n_body = _n(max(2 * period, d.settle_s), dt)
+    t = np.arange(n_lead + n_body) * dt
+    z = amp * np.sin(omega * t + seed_phase)
+    # the pre-compensator is applied to the whole record, after a sweep from one end to the other
+    # that puts F on a known border
+    far = _z_sweep(d, 1.05 * max(amp, d.amplitude))
+    zz = np.concatenate([far, z])
+    u = _precomp(F, zz)
+    mask = np.zeros(u.size, bool)
+    mask[far.size + n_lead:] = True
+    return Experiment(name, "sine", role, u, mask, zz, {"amplitude": float(amp), "omega": float(omega)})
+
+
+def _multisine(d: Design, rng: np.random.Generator, n: int, rms: float) -> np.ndarray:
+    dt = d.dt
+    T = n * dt
+    w0 = 2 * np.pi / T
+    lo = max(d.omega_c / 5, w0)
+    hi = min(30 * d.omega_c, np.pi / (5 * dt))
+    k = np.unique(np.round(np.geomspace(lo / w0, max(hi / w0, lo / w0 + 1), 40)).astype(int))
+    t = np.arange(n) * dt
+    ph = rng.uniform(0, 2 * np.pi, k.size)
+    z = np.sum(np.sin(np.outer(t, k * w0) + ph), axis=1)
+    return z * (rms / np.std(z))
+
+
+def design(cfg, model: HWModel, d: Design | None = None) -> list[Experiment]:
+    """The diagnosis experiments in the order they are run on the plant."""
+    d = d or design_from(cfg, model)
+    dt, H, W, c = d.dt, d.settle_s, d.width, d.centre
+    lo, hi = d.u_lo - 0.15 * W, d.u_hi + 0.15 * W
+    F = model.input
+    root = np.random.SeedSequence(d.seed, spawn_key=(zlib.crc32(b"hwid.diagnose"),))
+    rng_fit, rng_val = (np.random.default_rng(s) for s in root.spawn(2))
+    exps: list[Experiment] = []
+
+    # staircases over the widened range
+    for role, n_up in (("fit", 7), ("validation", 6)):
+        up = np.linspace(lo, hi, n_up)
+        down = up[::-1][1:]
+        body = _levels(np.concatenate([up, down]), H, dt)
+        exps.append(_exp(d, f"levels_{role}", "levels", role, body, _lead_in(d, up[0], hi)))
+    # fast steps of several sizes
+    seqs = {"fit": [0.1, 0.9, 0.3, 0.7, 0.0, 1.0, 0.55, 0.45, 0.8],
+            "validation": [0.2, 0.95, 0.05, 0.6, 0.4, 0.85, 0.15, 0.5]}
+    for role, fr in seqs.items():
+        vals = d.u_lo + W * np.asarray(fr)
+        exps.append(_exp(d, f"steps_{role}", "steps", role, _levels(vals, H / 2, dt),
+                         _lead_in(d, vals[0], d.u_hi)))
+    # triangles at several rates, one experiment per rate
+    for role, mults in (("fit", (0.2, 1.0)), ("validation", (0.1, 0.5, 2.0))):
+        for m in mults:
+            rate = W / (H * m)
+            n_stroke = _n(W / rate, dt)
+            ramp = np.linspace(d.u_lo, d.u_hi, n_stroke)
+            hold = _n(H / 2, dt)
+            body = np.concatenate([ramp, np.full(hold, d.u_hi), ramp[::-1], np.full(hold, d.u_lo)])
+            exps.append(_exp(d, f"ramp_{role}_r{rate:.3g}", "ramp", role, body,
+                             _lead_in(d, d.u_lo, d.u_hi), rate=float(rate)))
+    # fine staircases through 0 (or the middle of the range when it does not contain 0)
+    mid = 0.0 if d.u_lo < 0 < d.u_hi else c
+    s = 0.2 * max(abs(d.u_lo - mid), abs(d.u_hi - mid))
+    for role, n_lv in (("fit", 7), ("validation", 6)):
+        lv = mid + np.linspace(-s, s, n_lv)
+        body = np.concatenate([_levels(lv, H / 2, dt), _levels([d.u_hi], H, dt), _levels(lv[::-1], H / 2, dt)])
+        exps.append(_exp(d, f"small_{role}", "small", role, body, _lead_in(d, d.u_lo, d.u_hi)))
+    # long holds
+    for role, (a, b, n_h) in (("fit", (d.u_hi, c - 0.3 * W, 4)), ("validation", (d.u_lo, c + 0.3 * W, 6))):
+        exps.append(_exp(d, f"hold_{role}", "hold", role, _levels([b], n_h * H, dt), _lead_in(d, a, -a + 2 * c)))
+    # sines through the pre-compensator
+    nyq = np.pi / dt
+    A, wc = d.amplitude, d.omega_c
+    plan = {"fit": [(A, 0.5 * wc), (A, 2 * wc), (A, 8 * wc), (0.5 * A, 2 * wc)],
+            "validation": [(A, 0.3 * wc), (A, wc), (A, 4 * wc), (A, 16 * wc), (0.5 * A, wc), (1.25 * A, wc)]}
+    for role, items in plan.items():
+        for amp, w in items:
+            w = min(w, nyq / 10)
+            exps.append(_sine_exp(d, F, f"sine_{role}_A{amp:.3g}_w{w:.3g}", role, amp, w))
+    # broadband
+    for role, rng in (("fit", rng_fit), ("validation", rng_val)):
+        n = _n(6 * H, dt)
+        z = _multisine(d, rng, n, A / 2.5)
+        zl = np.concatenate([_z_sweep(d, 1.05 * A), np.full(_n(1.5 * H, dt), z[0])])
+        zz = np.concatenate([zl, z])
+        u = _precomp(F, zz)
+        mask = np.zeros(u.size, bool)
+        mask[zl.size:] = True
+        exps.append(Experiment(f"broadband_{role}", "broadband", role, u, mask, zz, {}))
+    # repeats at the end of the session
+    for name in ("levels_validation", "steps_validation", "broadband_validation"):
+        e = next(x for x in exps if x.name == name)
+        exps.append(Experiment(name + ".repeat", e.kind, "validation", e.u.copy(), e.mask.copy(),
+                               None if e.z is None else e.z.copy(), dict(e.variable), repeat_of=name))
+    for e in exps:
+        e.region = regions(e.u, e.mask, d, e.z)
+    return exps
+
+
+def regions(u, mask, d: Design, z=None) -> np.ndarray:
+    """Label each sample: lead-in, steady levels, transients after a step, near a reversal of the
+    input's direction, beyond the identification range (extremes), small moves around 0, or
+    continuously moving (dynamic)."""
+    u = np.asarray(u, float)
+    n = u.size
+    out = np.full(n, REGIONS.index("dynamic"), np.int8)
+    du = np.diff(u, prepend=u[0])
+    moving = np.abs(du) > 1e-12 * max(d.width, 1.0)
+    win = _n(d.settle_s / 2, d.dt)
+    # samples since the last change of u
+    idx = np.arange(n)
+    last_change = np.maximum.accumulate(np.where(moving, idx, 0))
+    since = idx - last_change
+    steady = since >= win
+    # a reversal: the direction of the last move differs from the one before; "near" means
+    # within half a settling time and before u has moved 10 % of the range from the turning point
+    # (so a step across the range is a transient, not a reversal)
+    sgn = np.sign(du)
+    rev_idx = np.full(n, -10 ** 9)
+    u_rev = np.zeros(n)
+    prev, last, ur = 0.0, -10 ** 9, 0.0
+    for k in np.nonzero(moving)[0]:
+        if prev != 0 and sgn[k] != prev:
+            last, ur = k, u[k - 1]
+        prev = sgn[k]
+        rev_idx[k] = last
+        u_rev[k] = ur
+    rev_idx = np.maximum.accumulate(rev_idx)
+    u_rev = u_rev[np.maximum.accumulate(np.where(moving, idx, 0))]
+    near_rev = ((idx - rev_idx) < win) & (np.abs(u - u_rev) < 0.1 * d.width)
+    stepwise = (np.abs(du) > 0.02 * d.width)
+    step_idx = np.maximum.accumulate(np.where(stepwise, idx, -10 ** 9))
+    after_step = (idx - step_idx) < win
+    out[steady] = REGIONS.index("levels")
+    out[after_step & ~steady] = REGIONS.index("transients")
+    mid = 0.0 if d.u_lo < 0 < d.u_hi else d.centre
+    staircase_like = steady | after_step
+    out[staircase_like & (np.abs(u - mid) < 0.15 * 0.5 * d.width)] = REGIONS.index("small moves")
+    out[near_rev] = REGIONS.index("near reversals")
+    out[(u < d.u_lo - 0.02 * d.width) | (u > d.u_hi + 0.02 * d.width)] = REGIONS.index("extremes")
+    if z is not None:
+        # through the pre-compensator u jumps across the gap at each reversal of z: label from z
+        z = np.asarray(z, float)
+        dz = np.diff(z, prepend=z[0])
+        zs = np.sign(dz)
+        turn = np.zeros(n, bool)
+        turn[1:] = (zs[1:] != zs[:-1]) & (zs[1:] != 0) & (zs[:-1] != 0)
+        t_idx = np.maximum.accumulate(np.where(turn, idx, -10 ** 9))
+        z_at = z[np.clip(t_idx, 0, n - 1)]
+        zr = max(np.ptp(z), 1e-12)
+        out[:] = REGIONS.index("dynamic")
+        out[(t_idx >= 0) & (np.abs(z - z_at) < 0.1 * zr)] = REGIONS.index("near reversals")
+        out[(u < d.u_lo - 0.02 * d.width) | (u > d.u_hi + 0.02 * d.width)] = REGIONS.index("extremes")
+    out[~np.asarray(mask, bool)] = REGIONS.index("lead_in")
+    return out
+
+
+def run(plant, exps: list[Experiment], progress=None) -> list:
+    """Run each experiment on the plant (journalled when the plant has a journal); return records."""
+    records = []
+    for e in exps:
+        r = plant.run(e.name, e.u, z=e.z)
+        r.attrs.update({"kind": e.kind, "role": e.role, **{k: float(v) for k, v in e.variable.items()}})
+        records.append(r)
+        if progress:
+            progress(e)
+    return records

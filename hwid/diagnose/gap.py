@@ -1,0 +1,281 @@
+"""Gap measures: the noise floor from repeated experiments, the gap per experiment and per region,
+the test "is the gap more than noise", and where the excess lies (region, frequencies, trend).
+
+Notation: ``r = y_plant - y_model`` on the scored samples of an experiment; ``sigma`` the noise
+floor (standard deviation of the fast measurement noise); "excess" is ``mean(r^2) - sigma^2``, the
+part of the mean-square gap that noise does not account for.
+
+The noise floor comes from the difference ``d = y_a - y_b`` of two runs of the same input at
+different times: whatever the model gets wrong deterministically cancels in ``d``. A zero-phase
+moving average of two settling times is removed from ``d`` first (so a slow drift does not count as
+noise; its variance lost by the filter is restored by the factor ``M/(M-1)``). The same ``d`` gives
+the noise's correlation (``kappa``, the integrated autocorrelation time in samples, by batch means)
+and so the null distribution of every gap statistic, for white or coloured noise alike.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal
+
+from hwid.diagnose.effects import smooth
+from hwid.diagnose.experiments import REGIONS
+
+
+@dataclass(frozen=True)
+class NoiseFloor:
+    """Noise floor estimated from repeats.
+
+    Attributes
+    ----------
+    sigma : float
+        Standard deviation of the fast noise, output units.
+    kappa : float
+        Integrated autocorrelation time of the noise, samples (1 for white noise).
+    n : int
+        Samples in the repeat differences.
+    slow_rms : float
+        RMS of the block means of ``d/sqrt(2)`` (blocks of ``width`` samples): what changes
+        between repeats slowly.
+    slow_z : float
+        That slow power against its null distribution (z-score): large means the plant does not
+        repeat itself (a disturbance such as drift).
+    surrogate : np.ndarray
+        ``d/sqrt(2)`` high-passed: a sample of the noise (spectra, null distributions).
+    """
+
+    sigma: float
+    kappa: float
+    n: int
+    slow_rms: float
+    slow_z: float
+    surrogate: np.ndarray
+
+    def to_dict(self) -> dict:
+        return {"sigma": self.sigma, "kappa": self.kappa, "n": self.n, "slow_rms": self.slow_rms,
+                "slow_z": self.slow_z}
+
+
+def _kappa(e: np.ndarray) -> float:
+    """Integrated autocorrelation time of ``e`` by batch means (>= 1)."""
+    n = e.size
+    if n < 200:
+        return 1.0
+    v = np.var(e)
+    if v <= 0:
+        return 1.0
+    ks = []
+    for b in (25, 50, 100, 200):
+        m = n // b
+        if m < 20:
+            continue
+        bm = e[: m * b].reshape(m, b).mean(axis=1)
+        ks.append(b * np.var(bm) / v)
+    return float(max(1.0, np.median(ks))) if ks else 1.0
+
+
+def noise_floor(pairs, width: int, y_scale: float) -> NoiseFloor:
+    """Noise floor from ``pairs`` of (y_a, y_b, mask) of repeated experiments.
+
+    Parameters
+    ----------
+    width : int
+        Samples of the moving average removed from the differences (about two settling times).
+    y_scale : float
+        Output range; the floor is never below ``1e-6 y_scale`` (noise-free rigs still differ from
+        a model in the last digits).
+    """
+    parts, slow = [], []
+    for ya, yb, mask in pairs:
+        d = (np.asarray(ya, float) - np.asarray(yb, float))[np.asarray(mask, bool)] / np.sqrt(2)
+        if d.size < 10:
+            continue
+        m = int(min(max(width, 20), d.size))
+        lo = smooth(d, m)
+        parts.append((d - lo) * np.sqrt(m / max(m - 1, 1)))
+        slow.append(lo)
+    if not parts:
+        return NoiseFloor(1e-6 * y_scale, 1.0, 0, 0.0, 0.0, np.zeros(0))
+    e = np.concatenate(parts)
+    sigma = float(max(np.std(e), 1e-6 * y_scale))
+    kappa = _kappa(e)
+    # slow part: non-overlapping block means of d/sqrt(2) over `width` samples; for noise alone
+    # their mean square is sigma^2 kappa / width with relative s.d. sqrt(2 / blocks)
+    m = max(width, 20)
+    bm = []
+    for ya, yb, mask in pairs:
+        d = (np.asarray(ya, float) - np.asarray(yb, float))[np.asarray(mask, bool)] / np.sqrt(2)
+        nb = d.size // m
+        if nb >= 1:
+            bm.append(d[d.size - nb * m:].reshape(nb, m).mean(axis=1))
+    bm = np.concatenate(bm) if bm else np.zeros(0)
+    null = sigma ** 2 * kappa / m
+    p_slow = float(np.mean(bm ** 2)) if bm.size else 0.0
+    slow_z = float((p_slow / null - 1) / np.sqrt(2.0 / max(bm.size, 1))) if bm.size else 0.0
+    return NoiseFloor(sigma, kappa, int(e.size), float(np.sqrt(p_slow)), slow_z, e)
+
+
+def rms(x) -> float:
+    x = np.asarray(x, float)
+    return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
+
+
+def gap(residuals, masks) -> float:
+    """RMS of the residuals over the scored samples of all experiments (output units)."""
+    r = np.concatenate([np.asarray(r, float)[np.asarray(m, bool)] for r, m in zip(residuals, masks)])
+    return rms(r)
+
+
+@dataclass(frozen=True)
+class GapTest:
+    """``mean(r^2)/sigma^2`` against 1: z-score and decision."""
+
+    ratio: float
+    z: float
+    significant: bool
+
+    def to_dict(self) -> dict:
+        return {"power_ratio": self.ratio, "z": self.z, "significant": bool(self.significant)}
+
+
+def gap_test(gap_rms: float, n: int, nf: NoiseFloor, z_crit: float = 5.0, min_ratio: float = 1.1) -> GapTest:
+    """Is the gap more than noise?
+
+    Under "the model is right" ``r`` is the noise, ``mean(r^2)/sigma^2`` is 1 with relative standard
+    error ``sqrt(2 kappa / n)`` from the gap and ``sqrt(2 kappa / n_noise)`` from the floor. The gap
+    is declared larger than noise when the z-score exceeds ``z_crit`` (5: no false alarms over
+    thousands of diagnoses) and the mean-square gap exceeds the noise's by ``min_ratio`` (10 %: an
+    excess too small to matter to a simulator user is not reported, however significant).
+    """
+    ratio = gap_rms ** 2 / nf.sigma ** 2
+    se = np.sqrt(2 * nf.kappa / max(n, 1) + 2 * nf.kappa / max(nf.n, 1))
+    z = float((ratio - 1.0) / se)
+    return GapTest(float(ratio), z, bool(z > z_crit and ratio > min_ratio))
+
+
+# ------------------------------------------------------------------------------------------- where
+
+def per_experiment(names, residuals, masks, sigma: float) -> list[dict]:
+    out = []
+    for name, r, m in zip(names, residuals, masks):
+        g = rms(np.asarray(r)[np.asarray(m, bool)])
+        out.append({"name": name, "gap": g, "gap_over_noise": g / sigma,
+                    "excess": max(g * g - sigma * sigma, 0.0)})
+    return out
+
+
+def per_region(residuals, regions, sigma: float) -> dict:
+    """Excess mean-square per region, and each region's share of the total excess."""
+    r = np.concatenate([np.asarray(x, float) for x in residuals])
+    reg = np.concatenate([np.asarray(x) for x in regions])
+    out = {}
+    total = 0.0
+    for code, name in enumerate(REGIONS):
+        if name == "lead_in":
+            continue
+        sel = reg == code
+        if not np.any(sel):
+            continue
+        ex = float(np.sum(r[sel] ** 2 - sigma ** 2))
+        out[name] = {"samples": int(sel.sum()), "gap": rms(r[sel]), "gap_over_noise": rms(r[sel]) / sigma,
+                     "excess_sum": ex}
+        total += max(ex, 0.0)
+    for v in out.values():
+        v["share"] = max(v["excess_sum"], 0.0) / total if total > 0 else 0.0
+    return out
+
+
+def main_region(regions_stats: dict) -> str:
+    """Where the excess is densest, among regions holding at least 15 % of it."""
+    cands = [(v["gap_over_noise"], k) for k, v in regions_stats.items() if v["share"] >= 0.15]
+    if not cands:
+        return "nowhere in particular"
+    return max(cands)[1]
+
+
+def frequencies(exps, residuals, nf: NoiseFloor, dt: float, top: int = 6) -> list[dict]:
+    """Frequencies where the residual has more power than the noise: harmonics ``k omega`` of the
+    validation sines (Fourier coefficient against its noise level) and bands of the broadband
+    residual (Welch spectrum against the noise surrogate's)."""
+    found = []
+    sig = nf.sigma
+    for e, r in zip(exps, residuals):
+        if e.role != "validation" or e.repeat_of:
+            continue
+        rm = np.asarray(r)[e.mask]
+        if e.kind == "sine":
+            w = e.variable["omega"]
+            t = np.arange(rm.size) * dt
+            for k in range(1, 6):
+                if k * w >= np.pi / dt:
+                    break
+                c = 2 * np.mean(rm * np.exp(-1j * k * w * t))
+                level = sig * np.sqrt(4 * nf.kappa / rm.size)     # |c| of pure noise, 1 s.d.
+                ratio = abs(c) / level
+                if ratio > 5:
+                    found.append({"omega_rad_s": float(k * w), "harmonic": k, "experiment": e.name,
+                                  "amplitude": float(abs(c)), "over_noise": float(ratio)})
+        elif e.kind == "broadband" and nf.surrogate.size > 256:
+            nper = int(min(2048, rm.size // 4))
+            if nper < 64:
+                continue
+            f, pr = signal.welch(rm, fs=1 / dt, nperseg=nper)
+            _, pn = signal.welch(nf.surrogate, fs=1 / dt, nperseg=nper)
+            segs = max(2 * rm.size // nper - 1, 1)
+            ratio = pr / np.maximum(pn, 1e-300)
+            crit = 1 + 6 / np.sqrt(segs)
+            for i in np.argsort(ratio)[::-1][:top]:
+                if ratio[i] > crit and f[i] > 0:
+                    found.append({"omega_rad_s": float(2 * np.pi * f[i]), "harmonic": None, "experiment": e.name,
+                                  "amplitude": float(np.sqrt(pr[i] * (f[1] - f[0]))), "over_noise": float(ratio[i])})
+    found.sort(key=lambda x: -x["over_noise"])
+    return found[:top * 2]
+
+
+def trend(exps, residuals, sigma: float, dt: float) -> dict:
+    """Whether the excess gap grows with amplitude, rate, frequency or time.
+
+    Families of validation experiments that differ in one variable (sines at one frequency and
+    several amplitudes; sines at one amplitude and several frequencies; ramps at several rates)
+    and, for time, the first against the second half of every experiment's scored samples. A
+    family "grows" when its excess RMS rises monotonically and the largest is at least twice the
+    smallest and above the noise floor. Returns the strongest growth and every family's numbers.
+    """
+    def ex(r, m):
+        g = rms(np.asarray(r)[m])
+        return np.sqrt(max(g * g - sigma * sigma, 0.0))
+
+    fams: dict[str, list] = {"amplitude": [], "frequency": [], "rate": []}
+    val = [(e, r) for e, r in zip(exps, residuals) if e.role == "validation" and not e.repeat_of]
+    sines = [(e, r) for e, r in val if e.kind == "sine"]
+    if sines:
+        amps = [e.variable["amplitude"] for e, _ in sines]
+        a_ref = max(set(amps), key=amps.count)
+        fams["frequency"] = sorted((e.variable["omega"], ex(r, e.mask)) for e, r in sines
+                                   if e.variable["amplitude"] == a_ref)
+        ws = [e.variable["omega"] for e, _ in sines]
+        for w in set(ws):
+            grp = sorted((e.variable["amplitude"], ex(r, e.mask)) for e, r in sines if e.variable["omega"] == w)
+            if len(grp) > len(fams["amplitude"]):
+                fams["amplitude"] = grp
+    fams["rate"] = sorted((e.variable["rate"], ex(r, e.mask)) for e, r in val if e.kind == "ramp")
+    halves = []
+    for e, r in val:
+        idx = np.nonzero(e.mask)[0]
+        h = idx.size // 2
+        halves.append((ex(r, idx[:h]), ex(r, idx[h:])))
+    fams["time"] = [(0.0, float(np.sqrt(np.mean([a * a for a, _ in halves])))),
+                    (1.0, float(np.sqrt(np.mean([b * b for _, b in halves]))))] if halves else []
+    best, growth = "no clear trend", 0.0
+    for name, fam in fams.items():
+        if len(fam) < 2:
+            continue
+        ys = np.array([y for _, y in fam])
+        if ys[-1] < 0.5 * sigma:
+            continue
+        monotone = np.all(np.diff(ys) >= -0.1 * ys.max())
+        g = ys[-1] / max(ys[0], 0.05 * sigma)
+        if monotone and g >= 2 and g > growth:
+            best, growth = f"grows with {name}", g
+    return {"trend": best, "families": {k: [[float(a), float(b)] for a, b in v] for k, v in fams.items()}}

@@ -1,0 +1,239 @@
+"""Which effect: fit every catalogue effect on the fit experiments, score it on the validation
+experiments (which the fit never saw), rank, and give the verdict.
+
+For an effect with parameters ``theta`` (what it interacts with included, e.g. the borders for a
+deadzone) the fit minimises the squared gap on the fit experiments: a coarse grid of starting
+points (:meth:`Effect.starts`), then bounded least squares (``scipy.optimize.least_squares``) from
+the best two, on a unit box (log scale where the parameter spans decades). The candidate is then
+simulated on the validation experiments:
+
+* ``gap_after`` — RMS gap left, output units;
+* ``explained_fraction = (gap_before^2 - gap_after^2) / (gap_before^2 - sigma^2)`` — the share of the
+  mean-square gap above the noise floor that the effect removes (clipped to [0, 1]);
+* ``score`` — a BIC on the validation data, ``n_eff ln(gap_before^2 / gap_after^2) - k ln(n_eff)``
+  with ``n_eff = n / kappa`` the independent samples and ``k`` the parameter count (for ``drift``, the
+  smoother's effective degrees of freedom): a candidate that does not pay for its parameters has
+  ``score <= 0`` and cannot be the verdict.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from hwid.diagnose import effects as E
+from hwid.diagnose.gap import rms
+
+
+@dataclass
+class Candidate:
+    effect: str
+    block: str
+    params: dict
+    gap_fit: float
+    gap_after: float
+    explained_fraction: float
+    score: float
+    k: float
+    per_experiment: dict = field(default_factory=dict)
+    predictions: list = field(default_factory=list, repr=False)   # validation model outputs
+
+    def to_dict(self) -> dict:
+        return {"effect": self.effect, "params": self.params, "gap_after": self.gap_after,
+                "explained_fraction": self.explained_fraction, "score": self.score,
+                "block": self.block, "gap_fit": self.gap_fit, "n_params": self.k,
+                "per_experiment": self.per_experiment}
+
+
+def excess(gap_rms: float, sigma: float) -> float:
+    """The gap above the noise floor, ``sqrt(max(gap^2 - sigma^2, 0))`` (noise adds in quadrature)."""
+    return float(np.sqrt(max(gap_rms * gap_rms - sigma * sigma, 0.0)))
+
+
+def explained_fraction(gap_before: float, gap_after: float, sigma: float) -> float:
+    """``1 - excess(after) / excess(before)``, clipped to [0, 1]: the share of the gap above the
+    noise floor that an effect removes."""
+    eb = excess(gap_before, sigma)
+    if eb <= 0:
+        return 0.0
+    return float(np.clip(1.0 - excess(gap_after, sigma) / eb, 0.0, 1.0))
+
+
+class EffectFitter:
+    """Fits effects of the catalogue to a plant, given the model simulated on both sets.
+
+    Parameters
+    ----------
+    sim_fit, sim_val : hwid.diagnose.effects.ModelSim
+        The model on the fit and on the validation experiments.
+    y_fit, y_val : list of arrays
+        The plant's outputs.
+    m_fit, m_val : list of bool arrays
+        Scored samples.
+    scale : Scale
+    sigma, kappa : float
+        Noise floor and the noise's correlation time (samples).
+    max_samples : int
+        The fit's residual vector is decimated to at most this many samples.
+    """
+
+    def __init__(self, sim_fit, y_fit, m_fit, sim_val, y_val, m_val, names_val, scale, sigma, kappa,
+                 max_samples: int = 60000):
+        self.sf, self.sv = sim_fit, sim_val
+        self.yf, self.yv = [np.asarray(y, float) for y in y_fit], [np.asarray(y, float) for y in y_val]
+        self.mf, self.mv = [np.asarray(m, bool) for m in m_fit], [np.asarray(m, bool) for m in m_val]
+        self.names_val = list(names_val)
+        self.scale = scale
+        self.sigma, self.kappa = float(sigma), float(kappa)
+        n = sum(int(m.sum()) for m in self.mf)
+        self.stride = max(1, int(np.ceil(n / max_samples)))
+        self.n_fit = n
+        self.n_val = sum(int(m.sum()) for m in self.mv)
+        self.gap_before = rms(np.concatenate([(y - x)[m] for y, x, m in zip(self.yv, sim_val.x, self.mv)]))
+        self.gap_before_fit = rms(np.concatenate([(y - x)[m] for y, x, m in zip(self.yf, sim_fit.x, self.mf)]))
+
+    # --------------------------------------------------------------------------- parameter maps
+    @staticmethod
+    def _to_unit(theta, lo, hi, logs):
+        t = np.asarray(theta, float)
+        out = np.empty_like(t)
+        for i, lg in enumerate(logs):
+            if lg:
+                out[i] = (np.log(t[i]) - np.log(lo[i])) / (np.log(hi[i]) - np.log(lo[i]))
+            else:
+                out[i] = (t[i] - lo[i]) / (hi[i] - lo[i]) if hi[i] > lo[i] else 0.0
+        return np.clip(out, 0.0, 1.0)
+
+    @staticmethod
+    def _from_unit(x, lo, hi, logs):
+        out = np.empty(len(logs))
+        for i, lg in enumerate(logs):
+            xi = float(np.clip(x[i], 0.0, 1.0))
+            out[i] = np.exp(np.log(lo[i]) + xi * (np.log(hi[i]) - np.log(lo[i]))) if lg else lo[i] + xi * (hi[i] - lo[i])
+        return out
+
+    def _residual(self, eff, theta, which="fit"):
+        sim, ys, ms = (self.sf, self.yf, self.mf) if which == "fit" else (self.sv, self.yv, self.mv)
+        st = self.stride if which == "fit" else 1
+        parts = []
+        for i, (y, m) in enumerate(zip(ys, ms)):
+            x = eff.simulate(sim, theta, i)
+            parts.append(((y - x)[m])[::st])
+        return np.concatenate(parts)
+
+    # ------------------------------------------------------------------------------------ fitting
+    def fit(self, eff: E.Effect) -> Candidate:
+        if eff.disturbance:
+            return self._fit_drift(eff)
+        lo, hi = eff.bounds(self.scale)
+        logs = eff.log_params()
+        starts = eff.starts(self.scale)
+        costs = []
+        for th in starts:
+            th = np.clip(th, lo, hi)
+            r = self._residual(eff, th)
+            costs.append((float(r @ r), th))
+        costs.sort(key=lambda c: c[0])
+        best_cost, best = costs[0]
+        for c0, th0 in costs[:2]:
+            x0 = self._to_unit(th0, lo, hi, logs)
+            free = hi > lo
+            if not np.any(free):
+                continue
+
+            def fun(x):
+                return self._residual(eff, self._from_unit(x, lo, hi, logs))
+            try:
+                sol = least_squares(fun, x0, bounds=(0.0, 1.0), diff_step=1e-3, x_scale=1.0,
+                                    max_nfev=40 * (len(x0) + 1), method="trf")
+            except ValueError:
+                continue
+            c = float(2 * sol.cost)
+            if c < best_cost:
+                best_cost, best = c, self._from_unit(sol.x, lo, hi, logs)
+        return self._score(eff, best, len(best))
+
+    def _fit_drift(self, eff: E.Drift) -> Candidate:
+        """The smoother's width by generalised cross-validation on the fit data."""
+        best = None
+        n = self.n_fit
+        for th in eff.starts(self.scale):
+            rss = 0.0
+            for i, (y, m) in enumerate(zip(self.yf, self.mf)):
+                x = eff.simulate(self.sf, th, i, y, m)
+                rss += float(np.sum((y - x)[m] ** 2))
+            dof = sum(eff.dof(th, int(m.sum()), self.sf.dt) for m in self.mf)
+            denom = 1 - min(self.kappa * dof / n, 0.99)
+            gcv = rss / n / denom ** 2
+            if best is None or gcv < best[0]:
+                best = (gcv, th, dof)
+        _, th, _ = best
+        dof_val = sum(eff.dof(th, int(m.sum()), self.sv.dt) for m in self.mv)
+        return self._score(eff, th, dof_val)
+
+    def _predict(self, eff, theta) -> list[np.ndarray]:
+        if eff.disturbance:
+            return [eff.simulate(self.sv, theta, i, y, m) for i, (y, m) in enumerate(zip(self.yv, self.mv))]
+        return [eff.simulate(self.sv, theta, i) for i in range(len(self.yv))]
+
+    def _score(self, eff, theta, k) -> Candidate:
+        preds = self._predict(eff, theta)
+        res = [(y - x)[m] for y, x, m in zip(self.yv, preds, self.mv)]
+        ga = rms(np.concatenate(res))
+        if eff.disturbance:
+            gf = ga
+        else:
+            rf = self._residual(eff, theta)
+            gf = rms(rf)
+        gb = self.gap_before
+        ef = explained_fraction(gb, ga, self.sigma)
+        n_eff = max(self.n_val / self.kappa, 2.0)
+        score = float(n_eff * np.log(max(gb * gb, 1e-300) / max(ga * ga, 1e-300)) - k * np.log(n_eff))
+        params = {p: float(v) for p, v in zip(eff.params, theta)}
+        per = {name: rms(r) for name, r in zip(self.names_val, res)}
+        return Candidate(eff.name, eff.block, params, gf, ga, ef, score, float(k), per, preds)
+
+
+def fit_all(fitter: EffectFitter, effects: dict[str, E.Effect], echo=None) -> list[Candidate]:
+    """Fit every effect; return the candidates ranked (explained fraction, then score)."""
+    out = []
+    for name, eff in effects.items():
+        c = fitter.fit(eff)
+        if echo:
+            echo(f"  {name:18s} explained {c.explained_fraction:5.2f}  gap after {c.gap_after:.4g}  "
+                 f"score {c.score:.4g}  {c.params}")
+        out.append(c)
+    return rank(out)
+
+
+def rank(cands: list[Candidate], tie: float = 0.03) -> list[Candidate]:
+    """By explained fraction; candidates within ``tie`` of each other by score (fewer parameters win
+    when they explain as much)."""
+    cands = sorted(cands, key=lambda c: -c.explained_fraction)
+    out: list[Candidate] = []
+    while cands:
+        top = cands[0].explained_fraction
+        grp = [c for c in cands if c.explained_fraction >= top - tie]
+        grp.sort(key=lambda c: -c.score)
+        out += grp
+        cands = [c for c in cands if c not in grp]
+    return out
+
+
+def verdict(cands: list[Candidate], significant: bool, drift_plausible: bool,
+            threshold: float = 0.5) -> Candidate | None | str:
+    """``"none"`` when the gap is noise; the first ranked candidate that explains at least
+    ``threshold`` of the excess and pays for its parameters; else ``"unexplained"``.
+
+    ``drift`` is only eligible when the plant does not repeat itself (``drift_plausible``): a
+    deterministic effect gives the same residual on repeated runs, a drift does not."""
+    if not significant:
+        return "none"
+    for c in cands:
+        if c.effect == "drift" and not drift_plausible:
+            continue
+        if c.explained_fraction >= threshold and c.score > 0:
+            return c
+        break
+    return "unexplained"

@@ -1,0 +1,102 @@
+"""Rig drivers with known unmodelled effects, for ``tests/test_diagnose*.py``.
+
+A small geared plant implemented here independently of hwid's blocks: a backlash (play 0.3 each
+side, unit slopes), ``G(s) = 2/((s+1)(s+2))`` discretised with scipy's ZOH, ``h(w) = w - 0.1 w^3``,
+white noise 0.01; the gear position and the drift carry over from call to call as on a real rig.
+Each driver adds one effect (the truth the tests check against); :data:`BASE_YAML` is the base
+plant as an hwid model. ``function(u, dt) -> y`` as ``plant.kind: external`` expects.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal
+
+BASE = {"kind": "hammerstein_wiener",
+        "input_nonlinearity": {"type": "backlash", "slope_up": 1.0, "slope_down": 1.0, "d_plus": 0.3, "d_minus": -0.3},
+        "linear": {"num": [2.0], "den": [1.0, 3.0, 2.0]},
+        "output_nonlinearity": {"polynomial": [0, 1.0, 0, -0.1]},
+        "noise": {"std": 0.01}}
+NOISE = 0.01
+TRUTH = {"sensor_lag": {"tau_s": 1.5}, "rate_limit": {"rate": 0.4}, "input_deadzone": {"delta": 0.2}}
+
+
+class _Rig:
+    def __init__(self, seed: int):
+        self.gear = 0.0
+        self.t = 0.0
+        self.drift = 0.0
+        self.rng = np.random.default_rng(np.random.SeedSequence(seed))
+
+    def base(self, u, dt, out_play: float = 0.0):
+        v = np.empty_like(u)
+        g = self.gear
+        for i, ui in enumerate(u):
+            g = min(max(g, ui - 0.3), ui + 0.3)
+            v[i] = g
+        self.gear = g
+        b, a, _ = signal.cont2discrete(([2.0], [1.0, 3.0, 2.0]), dt, method="zoh")[:3]
+        b = np.ravel(b)
+        zi = signal.lfiltic(b, a, y=[v[0]] * 2, x=[v[0]] * 2)
+        w = signal.lfilter(b, a, v, zi=zi)[0]
+        return w - 0.1 * w ** 3
+
+    def noise(self, n):
+        return NOISE * self.rng.standard_normal(n)
+
+
+_RIGS: dict[str, _Rig] = {}
+
+
+def _rig(name: str) -> _Rig:
+    if name not in _RIGS:
+        _RIGS[name] = _Rig(abs(hash(name)) % 2 ** 31)
+    return _RIGS[name]
+
+
+def plain(u, dt):
+    r = _rig("plain")
+    u = np.asarray(u, float)
+    return r.base(u, dt) + r.noise(u.size)
+
+
+def sensor_lag(u, dt):
+    r = _rig("sensor_lag")
+    u = np.asarray(u, float)
+    x = r.base(u, dt)
+    a = np.exp(-dt / TRUTH["sensor_lag"]["tau_s"])
+    y = signal.lfilter([1 - a], [1, -a], x, zi=[a * x[0]])[0]
+    return y + r.noise(u.size)
+
+
+def rate_limit(u, dt):
+    r = _rig("rate_limit")
+    u = np.asarray(u, float)
+    step = TRUTH["rate_limit"]["rate"] * dt
+    ua = np.empty_like(u)
+    p = u[0]
+    for i, ui in enumerate(u):
+        p += min(max(ui - p, -step), step)
+        ua[i] = p
+    return r.base(ua, dt) + r.noise(u.size)
+
+
+def input_deadzone(u, dt):
+    r = _rig("input_deadzone")
+    u = np.asarray(u, float)
+    dz = TRUTH["input_deadzone"]["delta"]
+    ua = np.where(u > dz, u - dz, np.where(u < -dz, u + dz, 0.0))
+    return r.base(ua, dt) + r.noise(u.size)
+
+
+def output_friction(u, dt):
+    """Outside the catalogue: stick-slip friction at the output shaft -- the measured position
+    only follows the model's output once it has moved 0.08 away (a play on x)."""
+    r = _rig("output_friction")
+    u = np.asarray(u, float)
+    x = r.base(u, dt)
+    y = np.empty_like(x)
+    p = x[0]
+    for i, xi in enumerate(x):
+        p = min(max(p, xi - 0.08), xi + 0.08)
+        y[i] = p
+    return y + r.noise(u.size)
