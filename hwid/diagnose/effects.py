@@ -435,21 +435,35 @@ class Resonance(Effect):
 
 
 class SensorLag(Effect):
+    """``1/(tau s + 1)`` after h (the structure becomes Wiener-Hammerstein).
+
+    Interaction: a G identified on a rig with a sensor lag has absorbed part of it (exactly when h
+    is linear); ``absorbed`` in [0, 1] takes that share back out, ``G -> G (absorbed tau s + 1)``."""
+
     def __init__(self):
-        super().__init__("sensor_lag", "output", ("tau_s",), "first-order sensor dynamics 1/(tau s + 1) after h")
+        super().__init__("sensor_lag", "output", ("tau_s", "absorbed"),
+                         "first-order sensor dynamics 1/(tau s + 1) after h; G re-estimated", interacts=("G",))
 
     def log_params(self):
-        return (True,)
+        return (True, False)
 
     def bounds(self, sc):
-        return np.array([0.5 * sc.dt]), np.array([2.0 * sc.settle_s])
+        return np.array([0.5 * sc.dt, 0.0]), np.array([2.0 * sc.settle_s, 1.0])
 
     def starts(self, sc):
         lo, hi = self.bounds(sc)
-        return [np.array([t]) for t in np.geomspace(lo[0], hi[0], 16)]
+        return _grid(np.geomspace(lo[0], hi[0], 14), [0.0, 1.0])
 
     def simulate(self, sim, theta, i):
-        return first_order(sim.x[i], float(theta[0]), sim.dt)
+        tau, a = float(theta[0]), float(theta[1])
+        if a > 0:
+            G = sim.model.linear
+            num = np.polymul(G.num, [a * tau, 1.0])
+            # a biproper G cannot give up a lag: keep it as it is
+            x = sim.from_v(sim.v[i], LinearBlock(tuple(num), G.den, G.delay)) if num.size <= len(G.den) else sim.x[i]
+        else:
+            x = sim.x[i]
+        return first_order(x, tau, sim.dt)
 
 
 class SensorSaturation(Effect):

@@ -240,7 +240,8 @@ def trend(exps, residuals, sigma: float, dt: float) -> dict:
     several amplitudes; sines at one amplitude and several frequencies; ramps at several rates)
     and, for time, the first against the second half of every experiment's scored samples. A
     family "grows" when its excess RMS rises monotonically and the largest is at least twice the
-    smallest and above the noise floor. Returns the strongest growth and every family's numbers.
+    smallest and above the noise floor. Returns every growing variable, strongest first, and every
+    family's numbers.
     """
     def ex(r, m):
         g = rms(np.asarray(r)[m])
@@ -267,7 +268,7 @@ def trend(exps, residuals, sigma: float, dt: float) -> dict:
         halves.append((ex(r, idx[:h]), ex(r, idx[h:])))
     fams["time"] = [(0.0, float(np.sqrt(np.mean([a * a for a, _ in halves])))),
                     (1.0, float(np.sqrt(np.mean([b * b for _, b in halves]))))] if halves else []
-    best, growth = "no clear trend", 0.0
+    grows = []
     for name, fam in fams.items():
         if len(fam) < 2:
             continue
@@ -276,6 +277,9 @@ def trend(exps, residuals, sigma: float, dt: float) -> dict:
             continue
         monotone = np.all(np.diff(ys) >= -0.1 * ys.max())
         g = ys[-1] / max(ys[0], 0.05 * sigma)
-        if monotone and g >= 2 and g > growth:
-            best, growth = f"grows with {name}", g
-    return {"trend": best, "families": {k: [[float(a), float(b)] for a, b in v] for k, v in fams.items()}}
+        if monotone and g >= 2:
+            grows.append((g, name))
+    grows.sort(reverse=True)
+    text = "grows with " + " and ".join(n for _, n in grows) if grows else "no clear trend"
+    return {"trend": text, "growth": {n: float(g) for g, n in grows},
+            "families": {k: [[float(a), float(b)] for a, b in v] for k, v in fams.items()}}
