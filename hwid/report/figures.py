@@ -14,6 +14,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
 Z95 = 1.959963984540054     # two-sided 95 % normal quantile
 
@@ -27,7 +28,12 @@ C_WIN = "#ff7f0e"      # steady-state windows / X_hat
 def _axes(ax, n: int = 1, figsize=(7.0, 3.6), sharex: bool = True):
     """``(fig, axes)``: new figure with ``n`` stacked axes, or the figure of the given axes."""
     if ax is None:
-        fig = Figure(figsize=figsize, layout="constrained")
+        # fixed margins (in inches) rather than a layout engine: these figures have a known shape,
+        # and constrained layout costs more than drawing them
+        w, h = figsize
+        fig = Figure(figsize=figsize)
+        fig.subplots_adjust(left=0.8 / w, right=1 - 0.15 / w, bottom=0.5 / h, top=1 - 0.32 / h,
+                            hspace=0.12 if sharex else 0.3)
         axes = fig.subplots(n, 1, sharex=sharex, squeeze=False)[:, 0]
         return fig, list(axes)
     axes = list(ax) if isinstance(ax, (list, tuple, np.ndarray)) else [ax]
@@ -159,7 +165,7 @@ def poly_band(coefficients, cov, w, z: float = Z95):
 
 def plot_h(coefficients, cov=None, w_range=None, truth: Callable | Sequence[float] | None = None,
            points: Mapping[str, tuple] | None = None, n_grid: int = 400, title: str | None = None,
-           ax=None) -> Figure:
+           w_plot: tuple[float, float] | None = None, ax=None) -> Figure:
     """The estimated output nonlinearity ``h_bar`` with its 95 % band against the truth (Fig. 12).
 
     Parameters
@@ -175,6 +181,9 @@ def plot_h(coefficients, cov=None, w_range=None, truth: Callable | Sequence[floa
         coefficients. Drawn with ``gid="truth"`` on the same grid as the estimate.
     points : mapping label -> (w_j, X_hat_j[, ci_j]), optional
         The staircase points mapped to the ``w`` axis (``U_j - d_hat^+`` for the ascending ones, eq. 8b).
+    w_plot : (float, float), optional
+        Draw over this wider range too (e.g. the ``[-U|G|, U|G|]`` the sines drive ``w`` over), so
+        any extrapolation of ``h`` outside ``w_range`` (shaded) shows.
     """
     fig, (a,) = _axes(ax, figsize=(6.0, 4.2))
     if w_range is None:
@@ -182,7 +191,10 @@ def plot_h(coefficients, cov=None, w_range=None, truth: Callable | Sequence[floa
         w_range = (min(x.min() for x in ws), max(x.max() for x in ws)) if ws else (-1.0, 1.0)
     lo, hi = float(w_range[0]), float(w_range[1])
     pad = 0.05 * (hi - lo or 1.0)
-    w = np.linspace(lo - pad, hi + pad, n_grid)
+    a_lo, a_hi = lo - pad, hi + pad
+    if w_plot is not None:
+        a_lo, a_hi = min(a_lo, float(w_plot[0])), max(a_hi, float(w_plot[1]))
+    w = np.linspace(a_lo, a_hi, n_grid)
     h, half = poly_band(coefficients, cov, w)
     if half is not None:
         a.fill_between(w, h - half, h + half, color=C_EST, alpha=0.25, lw=0, label="95 % band", gid="band")
@@ -359,7 +371,9 @@ def plot_spectrum(ks, coef, se=None, model=None, truth=None, dc=None, title: str
     _errorbar(ap, ks[sig], np.angle(coef)[sig], yerr=None if perr is None else perr[sig], fmt="s", color=C_WIN,
                 capsize=3, ms=5, label=r"$\hat\psi_k$", gid="measured_phase")
     if model is not None:
-        ap.plot(ks, np.angle(model), "o", color=C_EST, mfc="none", ms=7, label="model", gid="model_phase")
+        mo = np.asarray(model, complex)
+        keep = np.abs(mo) > 1e-9 * max(float(np.abs(mo).max()), 1e-300)     # a zero harmonic has no phase
+        ap.plot(ks[keep], np.angle(mo)[keep], "o", color=C_EST, mfc="none", ms=7, label="model", gid="model_phase")
     if truth is not None:
         tr = np.asarray(truth, complex)
         keep = np.abs(tr) > 1e-9 * max(float(np.abs(tr).max()), 1e-300)   # phase of a zero is noise
@@ -432,6 +446,10 @@ def plot_bode(omega, gain, phase, gain_ci=None, phase_ci=None, parametric=None, 
                 label=r"$\hat\varphi(\omega_i)$ ± 95 %", gid="estimate_phase")
     ag.set_xscale("log")
     ag.set_yscale("log")
+    # a gain axis often spans less than a decade: label 1-2-5 steps in plain numbers, no minor labels
+    ag.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+    ag.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+    ag.yaxis.set_minor_formatter(NullFormatter())
     ag.set_ylabel(r"$|G(j\omega)|$")
     ag.set_title(title or r"Bode plot of $\bar G(j\omega)$")
     ag.grid(alpha=0.3, which="both")

@@ -107,7 +107,7 @@ def _model_from_dict(d: dict):
 def load_run(directory: str | Path) -> RunData:
     """Read a run directory. Raises :class:`hwid.HwidError` (one line) when ``directory`` is not a
     directory, holds no hwid results, or holds a file that is broken, foreign or from another config."""
-    from hwid.results import open_results, read_dict, read_records
+    from hwid.results import open_results, read_dict
     d = Path(directory)
     if not d.exists():
         raise HwidError(f"{d}: no such directory")
@@ -143,7 +143,7 @@ def load_run(directory: str | Path) -> RunData:
     if present["simulation.h5"]:
         with open_results(d / "simulation.h5", "simulation") as f:
             if "experiments" in f:
-                run.records.update(read_records(f["experiments"]))
+                run.records.update(read_signals(f["experiments"]))
             if "truth" in f and "normalised" in f["truth"]:
                 try:
                     run.truth = _model_from_dict(read_dict(f["truth/normalised"]))
@@ -188,18 +188,37 @@ def _load_stage(module: str, func: str, path: Path, run: RunData):
     return loader(path, run.cfg) if run.cfg is not None else loader(path)
 
 
+SIGNALS = ("u", "y", "x")     # what the figures draw (v, w, z are not read: they are large)
+
+
+def read_signals(group, keys=SIGNALS, skip=()) -> dict:
+    """Like :func:`hwid.results.read_records`, reading only the datasets ``keys`` of the experiments
+    not named in ``skip``."""
+    from hwid.plant import Record
+    from hwid.results import ResultsError
+    out = {}
+    for name, g in group.items():
+        if name in skip:
+            continue
+        try:
+            # the sine figures use y and x only: u (as long as y) is not read for them
+            want = [k for k in keys if not (k == "u" and name.startswith("sine_"))]
+            kw = {k: (g[k][()] if k in want and k in g else None) for k in SIGNALS}
+            attrs = {k: v for k, v in g.attrs.items() if k not in ("dt", "n")}
+            if kw.get("y") is None:
+                raise KeyError("y")
+            out[name] = Record(name, float(g.attrs["dt"]), attrs=attrs, **kw)
+        except (KeyError, OSError, TypeError, ValueError) as err:
+            raise ResultsError(f"{group.file.filename}: experiment {name!r} is unreadable ({err})") from None
+    return out
+
+
 def _records_from(path: Path, kind: str, run: RunData) -> None:
     """Experiments stored in a stage file (``experiments/``) fill in those simulation.h5 lacks."""
-    from hwid.results import open_results, read_records
+    from hwid.results import open_results
     with open_results(path, kind) as f:
-        for gname in ("experiments", "records"):
-            if gname in f and hasattr(f[gname], "items"):
-                try:
-                    recs = read_records(f[gname])
-                except Exception:  # noqa: BLE001 - a stage's own layout; the report only borrows it
-                    continue
-                for k, r in recs.items():
-                    run.records.setdefault(k, r)
+        if "experiments" in f:
+            run.records.update(read_signals(f["experiments"], skip=set(run.records)))
 
 
 # ================================================================================ small helpers
@@ -544,7 +563,10 @@ def sine_views(run: RunData) -> list[SineView]:
             model, model_dc = None, 0.0
         v = SineView(rec.name, omega, U, rec.dt, start, t_f, y_f, x_f, raw, ks, coef, se, dc, model, model_dc)
         if rec.x is not None:
-            c, v.truth_dc, _ = ls_harmonics(rec.x, rec.dt, omega, start, int(ks.max()))
+            # x is noise-free and periodic: its last two whole periods give its harmonics exactly
+            P = int(np.floor((rec.x.size - start) * rec.dt / T + 1e-9))
+            first = start + int(np.ceil(max(P - 2, 0) * T / rec.dt - 1e-9))
+            c, v.truth_dc, _ = ls_harmonics(rec.x, rec.dt, omega, first, int(ks.max()))
             v.truth_coef = c[ks - 1]
         out.append(v)
     return out
@@ -617,13 +639,18 @@ def build_figures(run: RunData) -> list[FigureItem]:
         w_range = _get(nl, "w_range")
         t_h = truth.output if truth is not None else None
         pts = _points_on_w(run, views, f_est) if f_est is not None else {}
+        w_plot = None
+        if run.linear is not None and np.size(_get(run.linear, "gain", default=[])):
+            r = float(_get(run.linear, "amplitude", default=1.0)) * float(np.max(_get(run.linear, "gain")))
+            w_plot = (-r, r)      # where the sines drive w (eq. 17)
         items.append(FigureItem("h", "stage1",
                                 "Fig. 12: the estimated output nonlinearity ĥ (eq. 12) with its 95 % band "
                                 "(delta method on the coefficients' covariance), the true h̄ (eq. 4c) when "
                                 "known, and the staircase points on the w axis through the estimated borders; "
-                                "shaded grey: the identified w range.",
+                                "shaded grey: the w range the staircases identified h on (outside it, as far as "
+                                "the sines drive w, h is extrapolated).",
                                 F.plot_h(coef, cov, None if w_range is None else tuple(np.ravel(w_range)[:2]),
-                                         t_h, pts)))
+                                         t_h, pts, w_plot=w_plot)))
         if f_est is not None:
             lv = np.concatenate([v.levels for v in views.values()]) if views else np.array([-1.5, 1.5])
             pad = 0.1 * (lv.max() - lv.min())
