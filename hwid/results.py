@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import json
+import math
 import os
 import sys
 from pathlib import Path
@@ -29,6 +30,9 @@ import numpy as np
 from hwid import HwidError, __version__
 
 FORMAT = 1
+LIBVER = ("v110", "latest")   # HDF5 >= 1.10 object layout: checksummed metadata
+USERBLOCK = 512               # bytes before the HDF5 superblock, ignored by HDF5: hwid's checksum
+_STAMP = b"hwid-sha256:"
 
 
 class ResultsError(HwidError):
@@ -37,18 +41,34 @@ class ResultsError(HwidError):
 
 @contextlib.contextmanager
 def atomic_h5(path: str | Path, mode: str = "w") -> Iterator[h5py.File]:
-    """Open ``path.tmp`` for writing and rename it to ``path`` when the block completes."""
+    """Open ``path.tmp`` for writing and rename it to ``path`` when the block completes.
+
+    Before the rename the SHA-256 of the HDF5 bytes is written into the file's user block (the
+    first :data:`USERBLOCK` bytes, which HDF5 skips), so :func:`open_results` notices a file that was
+    changed or cut off afterwards before the HDF5 library parses it (a damaged HDF5 file can make
+    the library loop forever)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
+    with contextlib.suppress(FileNotFoundError):
+        tmp.unlink()            # left by a writer that was killed: never build on it
     if mode == "a" and path.exists():
         import shutil
         shutil.copyfile(path, tmp)
     try:
-        with h5py.File(tmp, "a" if mode == "a" else "w") as f:
+        create = not tmp.exists()
+        kw = {"userblock_size": USERBLOCK} if create else {}
+        with h5py.File(tmp, "a" if mode == "a" else "w", libver=LIBVER, **kw) as f:
             yield f
             f.flush()
+            stamp = f.userblock_size >= USERBLOCK
         with open(tmp, "rb+") as fh:
+            if stamp:
+                fh.seek(USERBLOCK)
+                digest = _sha256(fh)
+                fh.seek(0)
+                fh.write((_STAMP + digest.encode() + b"\n").ljust(USERBLOCK, b"\0"))
+            fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
         _fsync_dir(path.parent)
@@ -56,6 +76,27 @@ def atomic_h5(path: str | Path, mode: str = "w") -> Iterator[h5py.File]:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
         raise
+
+
+def _sha256(fh) -> str:
+    import hashlib
+    h = hashlib.sha256()
+    for chunk in iter(lambda: fh.read(1 << 20), b""):
+        h.update(chunk)
+    return h.hexdigest()
+
+
+def verify_checksum(path: str | Path) -> bool | None:
+    """True if ``path`` carries hwid's checksum and it matches, False if it does not match, None if
+    the file has no hwid checksum (not written by :func:`atomic_h5`)."""
+    with open(path, "rb") as fh:
+        head = fh.read(USERBLOCK + 8)
+        if not head.startswith(_STAMP):
+            # a 512-byte user block without the stamp: hwid's own file with a damaged head
+            return False if head[USERBLOCK:] == b"\x89HDF\r\n\x1a\n" else None
+        fh.seek(USERBLOCK)
+        want = head[len(_STAMP):len(_STAMP) + 64].decode("ascii", errors="replace")
+        return _sha256(fh) == want
 
 
 def _fsync_dir(directory: Path) -> None:
@@ -107,6 +148,9 @@ def write_dict(group: h5py.Group, data: dict) -> None:
             group.attrs[key + "__json"] = True
 
 
+_H5_ERRORS = (OSError, KeyError, ValueError, TypeError, RuntimeError, AttributeError)
+
+
 def read_dict(group: h5py.Group) -> dict:
     """Inverse of :func:`write_dict`."""
     out: dict = {}
@@ -152,14 +196,34 @@ def read_records(group: h5py.Group) -> dict:
             where = f"{group.file.filename}:{g.name}"
             kw = {k: (np.asarray(g[k][()], dtype=float) if k in g else None) for k in ("u", "y", "v", "w", "x", "z")}
             attrs = {k: v for k, v in g.attrs.items() if k not in ("dt", "n")}
-            out[name] = Record(name, float(g.attrs["dt"]), attrs=attrs, **kw)
-            if out[name].u is None or out[name].y is None or out[name].u.shape != out[name].y.shape:
-                raise ResultsError(f"{where}: experiment without matching 'u' and 'y' datasets")
+            r = out[name] = Record(name, float(g.attrs["dt"]), attrs=attrs, **kw)
+            if r.u is None or r.y is None or r.u.ndim != 1 or r.u.shape != r.y.shape:
+                raise ResultsError(f"{where}: experiment without matching one-dimensional 'u' and 'y' datasets")
+            if not (math.isfinite(r.dt) and r.dt > 0):
+                raise ResultsError(f"{where}: sample time dt = {r.dt} is not a positive number")
     except ResultsError:
         raise
-    except (OSError, KeyError, ValueError, TypeError, RuntimeError, AttributeError) as err:
+    except _H5_ERRORS as err:
         raise ResultsError(f"{where}: cannot be read ({type(err).__name__}: {err})") from None
     return out
+
+
+def read_simulation(path: str | Path, cfg=None) -> tuple[dict, dict | None]:
+    """The experiments (``{name: Record}``) and the stored truth (or None) of a ``simulation.h5``.
+
+    Checks the file with :func:`open_results` and reads every dataset; anything damaged raises
+    :class:`ResultsError` (one line), never an h5py error."""
+    with open_results(path, "simulation", cfg) as f:
+        try:
+            group = f["experiments"]
+        except _H5_ERRORS:
+            raise ResultsError(f"{path}: has no readable 'experiments' group (damaged file)") from None
+        records = read_records(group)
+        try:
+            truth = read_dict(f["truth"]) if "truth" in f else None
+        except _H5_ERRORS as err:
+            raise ResultsError(f"{path}:/truth: cannot be read ({type(err).__name__}: {err})") from None
+    return records, truth
 
 
 def open_results(path: str | Path, kind: str | tuple[str, ...], cfg=None) -> h5py.File:
@@ -174,6 +238,12 @@ def open_results(path: str | Path, kind: str | tuple[str, ...], cfg=None) -> h5p
     if path.is_dir():
         raise ResultsError(f"{path}: is a directory, expected an hwid results file")
     try:
+        intact = verify_checksum(path)
+    except OSError as err:
+        raise ResultsError(f"{path}: cannot be read ({err.strerror or type(err).__name__})") from None
+    if intact is False:
+        raise ResultsError(f"{path}: damaged (its checksum does not match: cut off or changed after hwid wrote it)")
+    try:
         f = h5py.File(path, "r")
     except (OSError, ValueError, RuntimeError):
         raise ResultsError(f"{path}: not a readable HDF5 file (truncated or foreign)") from None
@@ -187,14 +257,16 @@ def open_results(path: str | Path, kind: str | tuple[str, ...], cfg=None) -> h5p
             raise ResultsError(f"{path}: its hwid attributes cannot be read (corrupt file)") from None
         if got is None:
             raise ResultsError(f"{path}: not written by hwid (no hwid_kind attribute)")
-        got = got.decode(errors="replace") if isinstance(got, bytes) else str(got)
+        got = got.decode(errors="replace") if isinstance(got, bytes) else got
+        if not isinstance(got, str):
+            raise ResultsError(f"{path}: not written by hwid (its hwid_kind attribute is not a name)")
         if fmt != FORMAT:
             raise ResultsError(f"{path}: written with results format {fmt}, this hwid reads format {FORMAT}")
         if got not in kinds:
             raise ResultsError(f"{path}: is a '{got}' file, expected {' or '.join(repr(k) for k in kinds)}")
         if isinstance(stored_hash, bytes):
             stored_hash = stored_hash.decode(errors="replace")
-        if cfg is not None and stored_hash not in (None, cfg.sha256):
+        if cfg is not None and stored_hash is not None and (not isinstance(stored_hash, str) or stored_hash != cfg.sha256):
             raise ResultsError(f"{path}: was written for a different config than {cfg.source_path} "
                                f"(config hash differs); rerun with the matching config")
     except ResultsError:

@@ -21,7 +21,7 @@ import pytest
 import rigs
 from hwid import config as C
 from hwid.cli import main
-from hwid.results import FORMAT, ResultsError, open_results, read_records
+from hwid.results import FORMAT, ResultsError, atomic_h5, open_results, read_records, read_simulation
 
 D = rigs.DELETE
 HWID = Path(sys.executable).with_name("hwid")
@@ -284,8 +284,9 @@ def simulated(tmp_path_factory):
 
 
 def _copy(src: Path, dst: Path, **attrs) -> Path:
+    """A copy of ``src`` with root attributes changed, rewritten (and checksummed) by hwid's writer."""
     shutil.copyfile(src, dst)
-    with h5py.File(dst, "a") as f:
+    with atomic_h5(dst, "a") as f:
         for k, v in attrs.items():
             if v is None:
                 del f.attrs[k]
@@ -295,7 +296,14 @@ def _copy(src: Path, dst: Path, **attrs) -> Path:
 
 
 def _truncated(src, dst):
-    dst.write_bytes(src.read_bytes()[: src.stat().st_size // 3])
+    dst.write_bytes(src.read_bytes()[: src.stat().st_size * 2 // 3])
+    return dst
+
+
+def _flip(src, dst, pos):
+    b = bytearray(src.read_bytes())
+    b[pos] ^= 0x10
+    dst.write_bytes(bytes(b))
     return dst
 
 
@@ -309,7 +317,11 @@ def _foreign(src, dst):
 RESULTS_CASES = [
     ("missing", lambda s, d: d / "nope.h5", "simulation", "no such file"),
     ("directory", lambda s, d: d, "simulation", "is a directory, expected an hwid results file"),
-    ("truncated", _truncated, "simulation", "not a readable HDF5 file (truncated or foreign)"),
+    ("truncated", _truncated, "simulation", "damaged (its checksum does not match: cut off or changed"),
+    ("one-bit-flipped", lambda s, d: _flip(s, d, s.stat().st_size // 2), "simulation", "damaged (its checksum"),
+    ("checksum-wiped", lambda s, d: _flip(s, d, 3), "simulation", "damaged (its checksum"),
+    ("truncated-unstamped", lambda s, d: _truncated(_foreign(s, d.with_name("f.h5")), d), "simulation",
+     "not a readable HDF5 file (truncated or foreign)"),
     ("text-file", lambda s, d: rigs.write(d, "name: not hdf5\n"), "simulation", "not a readable HDF5 file"),
     ("empty-file", lambda s, d: (d.write_bytes(b""), d)[1], "simulation", "not a readable HDF5 file"),
     ("foreign-hdf5", _foreign, "simulation", "not written by hwid (no hwid_kind attribute)"),
@@ -347,8 +359,8 @@ def test_results_from_another_config(simulated, tmp_path):
 def test_damaged_experiment_group(simulated, tmp_path):
     """A file whose header is fine but an experiment lost its 'y': ResultsError naming the group."""
     path = _copy(simulated[0], tmp_path / "damaged.h5")
-    with h5py.File(path, "a") as f:
+    with atomic_h5(path, "a") as f:
         del f["experiments/sine_1/y"]
-    with open_results(path, "simulation") as f, pytest.raises(ResultsError, match=r"sine_1: experiment without"):
-        read_records(f["experiments"])
+    with pytest.raises(ResultsError, match=r"sine_1: experiment without matching one-dimensional 'u' and 'y'"):
+        read_simulation(path)
 
