@@ -1,0 +1,175 @@
+"""Generator of hidden rigs for the blind check of ``hwid diagnose`` (issue 6).
+
+Each case is a directory with
+
+* ``rig_<id>.py`` -- an external-plant driver ``rig(u, dt) -> y`` (``plant.kind: external``) built on
+  :mod:`rigkit` (numpy/scipy only, written apart from hwid): one of four base plants plus none, one
+  catalogue effect at a random strength, or an effect outside the catalogue;
+* ``config.yaml`` -- the config a user would write for that rig (identification protocols);
+* ``model.yaml`` -- the rig's own simulator without the effect (the sim side for ``--model``).
+
+The labels go to ``sealed.json`` beside the cases, which the runner opens only after every
+diagnosis is done. Usage: ``python generate.py OUTDIR [--cases 40] [--seed 2024]``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+CATALOGUE = ["input_saturation", "rate_limit", "input_deadzone", "curved_borders", "time_delay",
+             "resonance", "sensor_lag", "sensor_saturation", "drift"]
+OUTSIDE = ["hysteretic_friction", "gain_drift", "second_nonlinearity"]
+
+# base plants: F, G (descending powers), h (ascending), noise, sampling and identification protocols
+BASES = {
+    "paper": {
+        "F": {"type": "backlash", "slope_up": 1.0, "slope_down": 1.0, "d_plus": 0.5, "d_minus": -0.5},
+        "G": {"num": [0.2], "den": [1.0, 0.7, 0.1]}, "h": [0, 0.25, 0, -0.42, 0, 0.2],
+        "noise": {"std": 0.01}, "dt": 0.05, "tau": 5.0, "omega_c": 0.177,
+        "split": {"num1": [1.0], "den1": [2.0, 1.0], "num2": [2.0], "den2": [5.0, 1.0]},
+        "levels": (-1.4, 1.2), "hold": 30.0, "amp": 1.0, "freqs": [0.02, 0.05, 0.1, 0.2], "periods": 3},
+    "asymmetric": {
+        "F": {"type": "backlash", "slope_up": 1.2, "slope_down": 0.8, "d_plus": 0.4, "d_minus": -0.2},
+        "G": {"num": [4.0], "den": [1.0, 2.5, 4.0]}, "h": [0, 1.0, 0.25],
+        "noise": {"std": 0.02, "ar": 0.5}, "dt": 0.02, "tau": 0.8, "omega_c": 1.9,
+        "levels": (-1.5, 1.5), "hold": 5.0, "amp": 1.0, "freqs": [0.5, 1.0, 2.0, 4.0], "periods": 4},
+    "inverse": {
+        "F": {"type": "backlash_inverse", "slope_up": 1.0, "slope_down": 1.3, "d_plus": 0.2, "d_minus": -0.3},
+        "G": {"num": [1.0], "den": [0.8, 1.0]}, "h": [0, 0.8, 0, -0.1],
+        "noise": {"std": 0.005}, "dt": 0.02, "tau": 0.8, "omega_c": 1.25,
+        "levels": (-1.2, 1.2), "hold": 5.0, "amp": 1.0, "freqs": [0.3, 0.6, 1.2, 2.5], "periods": 4},
+    "third_order": {
+        "F": {"type": "backlash", "slope_up": 1.0, "slope_down": 1.0, "d_plus": 0.3, "d_minus": -0.3},
+        "G": {"num": [0.5, 3.0], "den": [1.0, 4.5, 6.5, 3.0]}, "h": [0, 1.0, 0, -0.2, 0, 0.02],
+        "noise": {"std": 0.01}, "dt": 0.02, "tau": 1.0, "omega_c": 0.8,
+        "split": {"num1": [1.0], "den1": [1.0, 1.0], "num2": [0.5, 3.0], "den2": [1.0, 3.5, 3.0]},
+        "levels": (-1.5, 1.5), "hold": 6.0, "amp": 1.0, "freqs": [0.3, 0.6, 1.2, 2.4], "periods": 4},
+}
+
+
+def _v_range(b):
+    F = b["F"]
+    lo, hi = b["levels"]
+    if F["type"] == "backlash":
+        return F["slope_down"] * (lo - F["d_minus"]), F["slope_up"] * (hi - F["d_plus"])
+    return lo / F["slope_down"] + F["d_minus"], hi / F["slope_up"] + F["d_plus"]
+
+
+def _y_range(b):
+    g0 = np.polyval(b["G"]["num"], 0) / np.polyval(b["G"]["den"], 0)
+    v = np.linspace(*_v_range(b), 200) * g0
+    y = np.polyval(b["h"][::-1], v)
+    return float(y.min()), float(y.max())
+
+
+def effect_params(effect: str, b: dict, rng: np.random.Generator) -> dict:
+    """A random strength, clearly above the base plant's noise."""
+    lo, hi = b["levels"]
+    W, c = hi - lo, 0.5 * (lo + hi)
+    T, wc = b["tau"], b["omega_c"]
+    U = rng.uniform
+    if effect == "input_saturation":
+        return {"lo": c - 0.5 * W * U(0.6, 0.95), "hi": c + 0.5 * W * U(0.6, 0.85)}
+    if effect == "rate_limit":
+        return {"rate": W / (T * U(0.3, 1.5))}
+    if effect == "input_deadzone":
+        return {"delta": 0.5 * W * U(0.08, 0.2)}
+    if effect == "curved_borders":
+        sgn = rng.choice([-1.0, 1.0], 2)
+        return {"shape": str(rng.choice(["sine", "parabola"])), "range": [lo, hi],
+                "up": float(sgn[0] * U(0.04, 0.08)), "down": float(sgn[1] * U(0.04, 0.08))}
+    if effect == "time_delay":
+        return {"delay": T * U(0.1, 0.3)}
+    if effect == "resonance":
+        return {"omega_n": wc * U(3, 8), "zeta": U(0.03, 0.1)}
+    if effect == "sensor_lag":
+        return {"tau": T * U(0.3, 1.0)}
+    if effect == "sensor_saturation":
+        ylo, yhi = _y_range(b)
+        m = max(abs(ylo), abs(yhi)) * U(0.65, 0.85)
+        return {"lo": -m, "hi": m}
+    if effect == "drift":
+        return {"time_s": U(60, 300), "std": b["noise"]["std"] * U(4, 8)}
+    if effect == "hysteretic_friction":
+        ylo, yhi = _y_range(b)
+        return {"width": (yhi - ylo) * U(0.03, 0.06)}
+    if effect == "gain_drift":
+        return {"amp": U(0.1, 0.2), "period": U(600, 1500), "phase": U(0, 2 * np.pi)}
+    if effect == "second_nonlinearity":
+        vlo, vhi = _v_range(b)
+        return {**b["split"], "level": max(abs(vlo), abs(vhi)) * U(0.5, 0.7)}
+    if effect == "none":
+        return {}
+    raise ValueError(effect)
+
+
+RIG = '''"""A hidden rig of the blind diagnosis check (generated)."""
+import json
+import rigkit
+
+PARAMS = json.loads({params!r})
+STATE = {{}}
+
+
+def rig(u, dt):
+    return rigkit.run(PARAMS, STATE, u, dt)
+'''
+
+
+def generate(out: Path, n_cases: int = 40, seed: int = 2024) -> list[str]:
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    ss = np.random.SeedSequence(seed)
+    rng = np.random.default_rng(ss.spawn(1)[0])
+    labels = ["none"] * 6 + [e for e in CATALOGUE for _ in range(3)]
+    outside = ["hysteretic_friction"] * 3 + ["gain_drift"] * 2 + ["second_nonlinearity"] * 2
+    labels += outside
+    labels = labels[:n_cases] if n_cases <= len(labels) else labels + list(rng.choice(CATALOGUE, n_cases - len(labels)))
+    rng.shuffle(labels)
+    bases = list(BASES)
+    sealed = {}
+    ids = []
+    case_seeds = ss.spawn(len(labels))
+    for i, label in enumerate(labels):
+        if label == "second_nonlinearity":
+            base = ["paper", "third_order"][i % 2]
+        else:
+            base = bases[int(rng.integers(len(bases)))]
+        b = BASES[base]
+        cid = f"c{i:02d}"
+        d = out / cid
+        d.mkdir(exist_ok=True)
+        ep = effect_params(label, b, rng)
+        params = {"F": b["F"], "G": b["G"], "h": b["h"], "noise": b["noise"], "effect": label,
+                  "effect_params": ep, "seed": int(case_seeds[i].generate_state(1)[0])}
+        (d / f"rig_{cid}.py").write_text(RIG.format(params=json.dumps(params)))
+        lo, hi = b["levels"]
+        up = np.round(np.linspace(lo, hi, 10), 4).tolist()
+        down = np.round(np.linspace(hi, lo, 11), 4).tolist()
+        cfg = {"name": f"blind-{cid}", "seed": 7 + i, "sampling": {"dt": b["dt"]},
+               "plant": {"kind": "external", "callable": f"rig_{cid}:rig"},
+               "protocols": {"staircase": {"levels_up": up, "levels_down": down, "hold": b["hold"]},
+                             "sine": {"amplitude": b["amp"], "frequencies": b["freqs"], "periods": b["periods"],
+                                      "lead_in_periods": 1}}}
+        (d / "config.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
+        model = {"plant": {"kind": "hammerstein_wiener", "input_nonlinearity": b["F"],
+                           "linear": {"num": b["G"]["num"], "den": b["G"]["den"]},
+                           "output_nonlinearity": {"polynomial": b["h"]}, "noise": b["noise"]}}
+        (d / "model.yaml").write_text(yaml.safe_dump(model, sort_keys=False))
+        sealed[cid] = {"label": label, "base": base, "params": ep}
+        ids.append(cid)
+    (out / "sealed.json").write_text(json.dumps(sealed, indent=1))
+    return ids
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser()
+    ap.add_argument("out")
+    ap.add_argument("--cases", type=int, default=40)
+    ap.add_argument("--seed", type=int, default=2024)
+    a = ap.parse_args()
+    print(f"{len(generate(Path(a.out), a.cases, a.seed))} cases in {a.out} (labels sealed in sealed.json)")

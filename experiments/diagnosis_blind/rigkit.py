@@ -1,0 +1,135 @@
+"""The blind experiment's rig simulator: written apart from hwid (numpy/scipy only, its own
+discretisations) so the diagnoser's effect models are not the rigs' formulas.
+
+A rig is ``PARAMS`` (base plant + one effect or none) and a mutable ``STATE`` carried from call to
+call like a real machine's (gear position, drift, elapsed time, noise generator).
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal
+
+
+def _gear(u, p, st):
+    """Backlash (play between two borders) or Backlash-Inverse (direction map), with optional
+    curved borders (``bow``) -- the rig's own implementation."""
+    F = p["F"]
+    su, sd, dp, dm = F["slope_up"], F["slope_down"], F["d_plus"], F["d_minus"]
+    bow = p.get("bow")
+    out = np.empty_like(u)
+    if F["type"] == "backlash":
+        g = st.get("gear", 0.0)
+        for i, ui in enumerate(u):
+            lo, hi = su * (ui - dp), sd * (ui - dm)
+            if bow is not None:
+                lo += _bow(ui, bow, "up")
+                hi += _bow(ui, bow, "down")
+            g = min(max(g, lo), max(hi, lo))
+            out[i] = g
+        st["gear"] = g
+    else:
+        g = st.get("gear", 0.0)
+        prev = st.get("u_prev", u[0])
+        for i, ui in enumerate(u):
+            if ui > prev:
+                g = ui / su + dp + (_bow(ui, bow, "up") if bow else 0.0)
+            elif ui < prev:
+                g = ui / sd + dm + (_bow(ui, bow, "down") if bow else 0.0)
+            prev = ui
+            out[i] = g
+        st["gear"], st["u_prev"] = g, prev
+    return out
+
+
+def _bow(u, bow, side):
+    """A border bent by a sine bow over the working range, or by a parabola, as the case says."""
+    k = bow[side]
+    lo, hi = bow["range"]
+    s = (u - lo) / (hi - lo)
+    if bow["shape"] == "sine":
+        return k * (hi - lo) * np.sin(np.pi * s)
+    return k * (hi - lo) * (2 * s - 1) ** 2
+
+
+def _lti(num, den, x, dt, method="zoh"):
+    b, a, _ = signal.cont2discrete((np.asarray(num, float), np.asarray(den, float)), dt, method=method)
+    b = np.ravel(b)
+    a = np.ravel(a)
+    # start at the equilibrium of the first sample
+    g0 = np.polyval(num, 0.0) / np.polyval(den, 0.0)
+    zi = signal.lfiltic(b, a, y=[g0 * x[0]] * (len(a) - 1), x=[x[0]] * (len(b) - 1))
+    return signal.lfilter(b, a, x, zi=zi)[0]
+
+
+def run(p: dict, st: dict, u, dt: float) -> np.ndarray:
+    """One call of the rig: ``u`` (samples every ``dt`` s) in, measured ``y`` out."""
+    u = np.asarray(u, float).copy()
+    n = u.size
+    if "rng" not in st:
+        st["rng"] = np.random.default_rng(np.random.SeedSequence(p["seed"]))
+        st["t"] = 0.0
+        st["drift"] = 0.0
+    rng = st["rng"]
+    e, ep = p["effect"], p.get("effect_params", {})
+    t = st["t"] + np.arange(n) * dt
+    # ------------------------------------------------------------ actuator
+    if e == "input_saturation":
+        u = np.minimum(np.maximum(u, ep["lo"]), ep["hi"])
+    elif e == "rate_limit":
+        r = ep["rate"] * dt
+        pos = st.get("act", u[0])
+        for i in range(n):
+            pos += min(max(u[i] - pos, -r), r)
+            u[i] = pos
+        st["act"] = pos
+    elif e == "input_deadzone":
+        d = ep["delta"]
+        u = np.where(np.abs(u) <= d, 0.0, u - d * np.sign(u))
+    v = _gear(u, {**p, "bow": ep if e == "curved_borders" else None}, st)
+    # ------------------------------------------------------------ dynamics
+    num, den = list(p["G"]["num"]), list(p["G"]["den"])
+    if e == "resonance":
+        wn, z = ep["omega_n"], ep["zeta"]
+        num, den = np.polymul(num, [wn * wn]), np.polymul(den, [1, 2 * z * wn, wn * wn])
+    if e == "second_nonlinearity":
+        w1 = _lti(ep["num1"], ep["den1"], v, dt)
+        w1 = ep["level"] * np.tanh(w1 / ep["level"])
+        w = _lti(ep["num2"], ep["den2"], w1, dt)
+    else:
+        w = _lti(num, den, v, dt)
+    delay = p["G"].get("delay", 0.0) + (ep["delay"] if e == "time_delay" else 0.0)
+    if delay > 0:
+        k = delay / dt
+        idx = np.arange(n) - k
+        w = np.interp(idx, np.arange(n), w, left=w[0])
+    x = np.polyval(p["h"][::-1], w)
+    # ------------------------------------------------------------ sensor and disturbances
+    if e == "sensor_lag":
+        x = _lti([1.0], [ep["tau"], 1.0], x, dt, method="bilinear")
+    if e == "hysteretic_friction":
+        y = np.empty_like(x)
+        pos = st.get("shaft", x[0])
+        for i in range(n):
+            pos = min(max(pos, x[i] - ep["width"]), x[i] + ep["width"])
+            y[i] = pos
+        st["shaft"] = pos
+        x = y
+    if e == "gain_drift":
+        x = x * (1 + ep["amp"] * np.sin(2 * np.pi * t / ep["period"] + ep["phase"]))
+    noise = p["noise"]["std"] * rng.standard_normal(n)
+    if p["noise"].get("ar", 0.0):
+        a = p["noise"]["ar"]
+        noise = signal.lfilter([np.sqrt(1 - a * a)], [1, -a], noise)
+    y = x + noise
+    if e == "drift":
+        # an Ornstein-Uhlenbeck wander with a time constant of minutes, carried across calls
+        tc, s = ep["time_s"], ep["std"]
+        a = np.exp(-dt / tc)
+        inc = s * np.sqrt(1 - a * a) * rng.standard_normal(n)
+        dr = signal.lfilter([1.0], [1, -a], inc, zi=[a * st["drift"]])[0]
+        st["drift"] = dr[-1]
+        y = y + dr
+    if e == "sensor_saturation":
+        y = np.minimum(np.maximum(y, ep["lo"]), ep["hi"])
+    st["t"] = t[-1] + dt if n else st["t"]
+    return y
