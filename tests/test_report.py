@@ -331,7 +331,7 @@ def test_full_report_tables(full_run):
     assert _rows(page, "data-omega", "0.5")[8:] == ["", "", "", ""]       # not in the paper's Table 2
     # the model, the warnings, the provenance
     assert "6.4 w^5 − 3.36 w^3 + 0.5 w" in page                               # true h_bar
-    assert "(0.1) / (1 s^2 + 0.7 s + 0.1)" in page                            # true G_bar
+    assert "(0.1) / (s^2 + 0.7 s + 0.1)" in page                            # true G_bar
     for w in list(nl.warnings) + list(lin.warnings):
         assert _html.escape(w) in page
     sha = config.loads(SMALL).sha256

@@ -280,7 +280,8 @@ def poly_text(coefficients, var: str = "w", digits: int = 4) -> str:
         if ci == 0:
             continue
         mag = f"{abs(ci):.{digits}g}"
-        body = mag if i == 0 else (f"{mag} {var}" if i == 1 else f"{mag} {var}^{i}")
+        mono = var if i == 1 else f"{var}^{i}"
+        body = mag if i == 0 else (mono if mag == "1" else f"{mag} {mono}")
         sign = "−" if ci < 0 else "+"
         terms.append((sign, body))
     if not terms:
@@ -580,6 +581,7 @@ class FigureItem:
     section: str
     caption: str
     figure: Any
+    group: str = ""          # figures of one group share a row of the page
 
 
 def steady_w(f, rec) -> np.ndarray | None:
@@ -620,7 +622,7 @@ def build_figures(run: RunData) -> list[FigureItem]:
         items.append(FigureItem(f"{v.name}_input", "stage1",
                                 f"Fig. {a}: the {word} staircase input u(t).",
                                 F.plot_staircase_input(v.t, v.u, v.levels, v.spans,
-                                                       title=f"Staircase input, {word} (Fig. {a})")))
+                                                       title=f"Staircase input, {word} (Fig. {a})"), v.name))
         cap = f"Fig. {b}: the measured output y(t) of the {word} staircase"
         if v.X_hat is not None:
             cap += (", the averaging windows (shaded" + (", assumed: the stage did not store them" if v.windows_assumed else "")
@@ -629,7 +631,7 @@ def build_figures(run: RunData) -> list[FigureItem]:
             cap += "; dashed: the undisturbed output x(t) (simulation ground truth)"
         items.append(FigureItem(f"{v.name}_output", "stage1", cap + ".",
                                 F.plot_staircase_output(v.t, v.y, v.windows, v.X_hat, v.X_ci, v.x, v.flat,
-                                                        title=f"Staircase output, {word} (Fig. {b})")))
+                                                        title=f"Staircase output, {word} (Fig. {b})"), v.name))
     nl = run.nonlinear
     truth = run.truth
     if nl is not None:
@@ -650,7 +652,7 @@ def build_figures(run: RunData) -> list[FigureItem]:
                                 "shaded grey: the w range the staircases identified h on (outside it, as far as "
                                 "the sines drive w, h is extrapolated).",
                                 F.plot_h(coef, cov, None if w_range is None else tuple(np.ravel(w_range)[:2]),
-                                         t_h, pts, w_plot=w_plot)))
+                                         t_h, pts, w_plot=w_plot), "nonlinearities"))
         if f_est is not None:
             lv = np.concatenate([v.levels for v in views.values()]) if views else np.array([-1.5, 1.5])
             pad = 0.1 * (lv.max() - lv.min())
@@ -660,7 +662,7 @@ def build_figures(run: RunData) -> list[FigureItem]:
                                     "input nonlinearity F̄ (eq. 4a) and its cycle, against the truth; bars: 95 % "
                                     "intervals of d⁺ and d⁻.",
                                     F.plot_borders(f_est, truth.input if truth is not None else None,
-                                                   (lv.min() - pad, lv.max() + pad), ci)))
+                                                   (lv.min() - pad, lv.max() + pad), ci), "nonlinearities"))
     lin = run.linear
     if lin is not None:
         om = np.asarray(_get(lin, "frequencies"), float)
@@ -682,14 +684,14 @@ def build_figures(run: RunData) -> list[FigureItem]:
                                 "period average x̂_N(t) of eq. (23a)"
                                 + (", the fitted harmonic model (eq. 20)" if model is not None else "")
                                 + (", and the undisturbed x(t) (dashed)" if s.x_fold is not None else "") + ".",
-                                F.plot_period(t, s.y_fold, s.omega, model, s.x_fold, s.raw)))
+                                F.plot_period(t, s.y_fold, s.omega, model, s.x_fold, s.raw), s.name))
         items.append(FigureItem(f"{s.name}_spectrum", "stage2",
                                 f"Fig. 16 at ω = {s.omega:g} rad/s: modulus s_k and phase ψ_k (eqs. 26a-b) of the "
                                 "harmonics of the steady-state output, 95 % bars"
                                 + (", the fitted model (circles)" if s.model is not None else "")
                                 + (", the truth (crosses)" if s.truth_coef is not None else "") + ".",
                                 F.plot_spectrum(s.ks, s.coef, s.se, s.model, s.truth_coef,
-                                                title=f"Harmonic spectrum, ω = {s.omega:g} rad/s (Fig. 16)")))
+                                                title=f"Harmonic spectrum, ω = {s.omega:g} rad/s (Fig. 16)"), s.name))
     if run.batch is not None and run.batch.get("points"):
         items.append(FigureItem("batch_summary", "batch",
                                 "Monte Carlo: RMSE of each estimate (relative to |truth|) with the CRLB "
@@ -843,7 +845,7 @@ padding:0 1em;color:#222;line-height:1.4}
 h1{font-size:1.5em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.6em}
 table{border-collapse:collapse;margin:.6em 0;font-size:.88em}td,th{border:1px solid #ccc;padding:.25em .5em;text-align:right}
 th{background:#f3f3f3}tr.flat td{color:#999}.ci{color:#666;font-size:.9em}
-figure{margin:1em 0;display:inline-block;vertical-align:top;max-width:100%}figure img{max-width:100%;height:auto;border:1px solid #eee}
+.row{display:flex;gap:1%;align-items:flex-start}figure{margin:.6em 0;flex:0 1 49.5%;min-width:0}figure img{max-width:100%;height:auto;border:1px solid #eee}
 figcaption{font-size:.85em;color:#444;max-width:700px}.missing,.warn{background:#fff4e5;border-left:4px solid #f0a030;padding:.4em .8em}
 .note{font-size:.85em;color:#555}code,pre{font-size:.85em}pre{background:#f7f7f7;padding:.6em;overflow:auto;max-height:24em}
 .model td{text-align:left}
@@ -947,7 +949,11 @@ def provenance_html(run: RunData) -> str:
 
 def render_html(run: RunData, items: list[FigureItem], pngs: dict[str, bytes]) -> str:
     def figs(section):
-        return "".join(_figure_html(i, pngs[i.name]) for i in items if i.section == section)
+        rows: dict[str, list[str]] = {}
+        for i in items:
+            if i.section == section:
+                rows.setdefault(i.group or i.name, []).append(_figure_html(i, pngs[i.name]))
+        return "".join(f"<div class='row'>{''.join(r)}</div>" for r in rows.values())
 
     title = f"hwid report: {run.config_name or run.directory.name}"
     present = ", ".join(f"{n} {'✓' if ok else '✗'}" for n, ok in run.present.items())
