@@ -327,8 +327,12 @@ def test_full_report_tables(full_run):
     assert _nums(cells[5]) == pytest.approx([lin.gain[i], *lin.gain_ci[i]], rel=1e-3)
     assert _nums(cells[6])[0] == pytest.approx(abs(G_BAR.freqresp(0.1)) / G_BAR.dc_gain, rel=1e-3)
     assert _nums(cells[7]) == pytest.approx([np.sqrt(lin.crlb_phase[i]), np.sqrt(lin.crlb_gain[i])], rel=6e-3)
-    assert _nums(" ".join(cells[8:12])) == [0.66, 0.68, 0.87, 0.89]
-    assert _rows(page, "data-omega", "0.5")[8:] == ["", "", "", ""]       # not in the paper's Table 2
+    # the other estimator (eq. 37 on one harmonic) beside the NLS one
+    o = lin.harmonics[i]["estimates"]["paper"]
+    assert _nums(cells[8]) == pytest.approx([o["phase"], *o["phase_ci"], o["gain"], *o["gain_ci"], o["harmonic"]],
+                                            rel=1e-3)
+    assert _nums(" ".join(cells[9:13])) == [0.66, 0.68, 0.87, 0.89]
+    assert _rows(page, "data-omega", "0.5")[9:] == ["", "", "", ""]       # not in the paper's Table 2
     # the model, the warnings, the provenance
     assert "6.4 w^5 − 3.36 w^3 + 0.5 w" in page                               # true h_bar
     assert "(0.1) / (s^2 + 0.7 s + 0.1)" in page                            # true G_bar
@@ -466,12 +470,23 @@ def test_batch_directory(tmp_path, tmp_path_factory):
     path = H.write_report(tmp_path)
     page = path.read_text()
     names = [f["name"] for f in json.loads((tmp_path / "report" / "figures.json").read_text())]
-    assert names == ["batch_summary"]
+    assert names == ["batch_nonlinear"]                          # no sines: no stage 2 estimates
     assert "id='batch'" in page and "Monte Carlo" in page
     assert "is missing" not in page                               # a batch directory has no stage files
     summ = load_summary(tmp_path / "batch.h5")
     run = H.load_run(tmp_path)
-    fig = [i.figure for i in H.build_figures(run) if i.name == "batch_summary"][0]
+    fig = [i.figure for i in H.build_figures(run) if i.name == "batch_nonlinear"][0]
     r = _line(fig.axes[0], "rmse:d_plus")
     np.testing.assert_allclose(r.get_xdata(), [0.01, 0.03])
     np.testing.assert_allclose(r.get_ydata(), [p["stats"]["d_plus"]["rmse"] / 0.4 for p in summ["points"]])
+
+
+def test_batch_figures_split_by_stage():
+    run = H.RunData(Path("."), {n: n == "batch.h5" for n in H.FILES}, {}, batch=SUMMARY)
+    items = H.build_figures(run)
+    assert [i.name for i in items] == ["batch_nonlinear", "batch_linear"]
+    lin = items[1].figure.axes[0]
+    assert [l.get_gid() for l in lin.get_lines()] == ["rmse:gain@0.1", "crlb:gain@0.1"]
+    page = H.render_html(run, items, {i.name: b"png" for i in items})
+    cells = _rows(page.replace("<tr><td>2</td>", "<tr data-x='p2'><td>2</td>", 1), "data-x", "p2")
+    assert cells[3] == "d_plus" and _nums(cells[7]) == [0.02] and _nums(cells[8]) == [0.95]

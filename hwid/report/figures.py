@@ -509,7 +509,8 @@ def plot_batch_summary(summary: Mapping, names: Sequence[str] | None = None, ax=
         scale = scale if rel else np.ones_like(scale)
         rmse = col("rmse") / scale
         crlb = col("crlb_std") / scale
-        ar.plot(x[order], rmse[order], "o-", color=color, ms=4, lw=1.2, label=name, gid=f"rmse:{name}")
+        ar.plot(x[order], rmse[order], "o-", color=color, ms=4, lw=1.2, label=name if rel else f"{name} (abs.)",
+                gid=f"rmse:{name}")
         if np.any(np.isfinite(crlb)):
             ar.plot(x[order], crlb[order], "--", color=color, lw=1.0, gid=f"crlb:{name}")
         ac.plot(x[order], col("coverage")[order], "o-", color=color, ms=4, lw=1.2, gid=f"coverage:{name}")

@@ -429,7 +429,8 @@ def staircase_views(run: RunData) -> dict[str, StaircaseView]:
             v.X_true = rec.x[stops - 1]
         elif run.truth is not None:
             all_lv = np.concatenate([lead, levels])
-            v.X_true = run.truth.steady_output(all_lv, state=0.0)[lead.size:]
+            state = -1e300 if run.truth.input.type == "backlash" else 0.0
+            v.X_true = run.truth.steady_output(all_lv, state=state)[lead.size:]
         if X[k] is not None and X[k].size == levels.size:
             v.X_hat = X[k]
             if CI[k] is not None and CI[k].size == levels.size:
@@ -693,11 +694,23 @@ def build_figures(run: RunData) -> list[FigureItem]:
                                 F.plot_spectrum(s.ks, s.coef, s.se, s.model, s.truth_coef,
                                                 title=f"Harmonic spectrum, ω = {s.omega:g} rad/s (Fig. 16)"), s.name))
     if run.batch is not None and run.batch.get("points"):
-        items.append(FigureItem("batch_summary", "batch",
-                                "Monte Carlo: RMSE of each estimate (relative to |truth|) with the CRLB "
-                                "standard deviation (dashed), and the coverage of the 95 % intervals, against "
-                                "the swept key.", F.plot_batch_summary(run.batch)))
+        names = list(dict.fromkeys(n for p in run.batch["points"] for n in p.get("stats", {})))
+        for key, sel, what in (("nonlinear", [n for n in names if "@" not in n], "stage 1 (borders, h̄)"),
+                               ("linear", [n for n in names if "@" in n], "stage 2 (|G|, φ per ω)")):
+            if sel:
+                items.append(FigureItem(f"batch_{key}", "batch",
+                                        f"Monte Carlo, {what}: RMSE of each estimate (relative to |truth|, absolute "
+                                        "where the truth is 0) with the CRLB standard deviation (dashed, where "
+                                        "known), and the coverage of the 95 % intervals, against the swept key.",
+                                        F.plot_batch_summary(run.batch, sel), "batch"))
     return items
+
+
+def _pair(ci):
+    if ci is None:
+        return None
+    v = np.ravel(np.asarray(ci, float))
+    return (float(v[0]), float(v[1])) if v.size == 2 else None
 
 
 def _pairs(ci):
@@ -805,7 +818,13 @@ def table2_html(run: RunData) -> str:
     pci = _pairs(_get(lin, "phase_ci"))
     cg = _get(lin, "crlb_gain")
     cp = _get(lin, "crlb_phase")
-    amp = run.cfg.protocols.sine.amplitude if run.cfg is not None and run.cfg.protocols.sine is not None else None
+    amp = _get(lin, "amplitude")
+    if amp is None and run.cfg is not None and run.cfg.protocols.sine is not None:
+        amp = run.cfg.protocols.sine.amplitude
+    method = str(_get(lin, "method", default="nls"))
+    other = "paper" if method == "nls" else "nls"
+    others = [((_get(h, "estimates", default={}) or {}).get(other) or {}) for h in (_get(lin, "harmonics") or ())]
+    show_other = any("gain" in o for o in others)
     G = run.truth.linear.freqresp(om) if run.truth is not None else None
     phi_true = None
     if run.truth is not None:
@@ -815,6 +834,8 @@ def table2_html(run: RunData) -> str:
     extrap = _get(lin, "extrapolated")
     head = ["i", "U<sub>i</sub>", "ω<sub>i</sub> (rad/s)", "φ̂(ω<sub>i</sub>) [95 %]", "φ true",
             "|Ĝ(jω<sub>i</sub>)| [95 %]", "|G| true", "CRLB sd φ / |G|"]
+    if show_other:
+        head += ["eq. (37), one harmonic: φ̂ / |Ĝ|" if other == "paper" else "NLS, all harmonics: φ̂ / |Ĝ|"]
     if paper:
         head += ["paper φ", "paper φ̂", "paper |G|", "paper |Ĝ|"]
     rows = [_tr(head, True)]
@@ -827,6 +848,11 @@ def table2_html(run: RunData) -> str:
                  _num(None if phi_true is None else phi_true[i]),
                  _pm(gain[i], None if gci is None else (gci[0][i], gci[1][i])),
                  _num(None if G is None else abs(G[i])), cr]
+        if show_other:
+            o = others[i] if i < len(others) else {}
+            cells.append(f"{_pm(o.get('phase'), _pair(o.get('phase_ci')))} / {_pm(o.get('gain'), _pair(o.get('gain_ci')))}"
+                         + (f" (k = {int(o['harmonic'])})" if o.get("harmonic") is not None else "")
+                         if "gain" in o else _html.escape(str(o.get("error", "—")))[:120])
         if extrap is not None and bool(np.ravel(extrap)[i]):
             cells[2] += " <span class='flag' title='extrapolated'>*</span>"
         if paper:
