@@ -19,13 +19,14 @@ import threading
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Optional
+from typing import TYPE_CHECKING, Callable, Optional
 
 import numpy as np
-from scipy import signal
 
 from hwid import HwidError
-from hwid.model import HWModel, from_config
+
+if TYPE_CHECKING:
+    from hwid.model import HWModel
 
 
 @dataclass
@@ -63,6 +64,7 @@ def noise(rng: np.random.Generator, n: int, std: float, ar: float = 0.0) -> np.n
     e = rng.standard_normal(n)
     if ar == 0.0:
         return std * e
+    from scipy import signal   # imported here: scipy.signal costs seconds at start-up
     b = [std * np.sqrt(1 - ar * ar)]
     zi = np.array([ar * std * rng.standard_normal()])  # stationary start
     return signal.lfilter(b, [1.0, -ar], e, zi=zi)[0]
@@ -255,6 +257,7 @@ def make_plant(cfg, seed: np.random.SeedSequence | int | None = None, journal_di
     if p.kind == "external":
         return ExternalPlant(p.callable, cfg.sampling.dt, p.timeout,
                              RigJournal(journal_dir) if journal_dir is not None else None, fn=load_external(cfg))
+    from hwid.model import from_config   # the numba kernels load only for simulated plants
     seed = cfg.seed if seed is None else seed
     return SimulatedPlant(from_config(p), cfg.sampling.dt, p.noise.std, p.noise.ar, seed,
                           p.input_nonlinearity.initial_state)
