@@ -229,6 +229,9 @@ class ExternalPlant:
                 raise RigError(f"external plant '{self.spec}' failed on experiment '{name}': "
                                f"{type(err).__name__}: {err}") from None
             self.calls += 1
+            if y is None:
+                raise RigError(f"external plant '{self.spec}' returned None for experiment '{name}' "
+                               f"(expected an array of {u.size} samples)")
             try:
                 y = np.asarray(y, dtype=float).reshape(-1)
             except Exception:  # noqa: BLE001 - anything that is not an array of numbers

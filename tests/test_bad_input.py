@@ -364,3 +364,33 @@ def test_damaged_experiment_group(simulated, tmp_path):
     with pytest.raises(ResultsError, match=r"sine_1: experiment without matching one-dimensional 'u' and 'y'"):
         read_simulation(path)
 
+
+
+# ---------------------------------------------------------------- safety: YAML is data, never code
+
+@pytest.mark.parametrize("tag", ["!!python/object/apply:os.mkdir", "!!python/object/new:os.mkdir",
+                                 "!!python/name:os.mkdir"])
+def test_yaml_tags_never_run_code(tag, tmp_path, capsys):
+    marker = tmp_path / "pwned"
+    path = rigs.write(tmp_path / "evil.yaml", f"name: {tag} ['{marker}']\n" if "name:" not in tag
+                      else f"name: {tag} ''\n")
+    code, _, err = run_cli(["check", path], capsys)
+    assert_one_line_error(code, err, f"{path}: line 1", "could not determine a constructor")
+    assert not marker.exists()
+
+
+def test_config_loader_is_a_safe_loader():
+    """Static check of the package: one YAML loader (a SafeLoader), no eval/exec/pickle of input."""
+    import re
+    import yaml
+    assert issubclass(C._SafeLoader, yaml.SafeLoader)
+    root = Path(C.__file__).parent
+    offenders = []
+    for src in root.rglob("*.py"):
+        text = src.read_text()
+        offenders += [f"{src.relative_to(root)}: {line.strip()}" for line in text.splitlines()
+                      if "yaml.load(" in line and "_SafeLoader" not in line]
+        for pat in (r"yaml\.unsafe_load", r"yaml\.full_load",
+                    r"(?<![\w.])eval\(", r"(?<![\w.])exec\(", r"pickle\.loads?\(", r"allow_pickle\s*=\s*True"):
+            offenders += [f"{src.relative_to(root)}: {m.group(0)}" for m in re.finditer(pat, text)]
+    assert not offenders, offenders
