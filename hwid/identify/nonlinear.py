@@ -221,21 +221,31 @@ def _other_zeros(kind: str, theta: np.ndarray, data: _Data) -> int:
 def _pick(kind: str, fits: list, data: _Data) -> tuple[int, bool]:
     """Choose among fits ``(theta, chi2)`` started from different roots of ``q`` (Remark 1.3).
 
-    If ``h_bar`` has another real zero ``w_0`` in the working range, the shifted model
-    ``(h_bar(. + w_0), d^+ + w_0, ...)`` fits exactly as well: the data cannot tell them apart and the
-    paper's assumption ``h(w) = 0 <=> w = 0`` decides. So among the fits within
-    ``chi2_min + max(9, chi2_min)`` (the closed form's candidates differ by their separately fitted
-    descending stage), the one whose ``h_bar`` has no other zero in the range visited is taken (the
-    best such); the flag says whether several distinct ones remained."""
+    Any real root of ``q(u) = h_bar(u - d^+)`` gives a model that reproduces the border points: if
+    ``h_bar`` has another real zero ``w_0``, the shifted model ``(h_bar(. + w_0), d^+ + w_0, ...)``
+    fits as well, and the paper's assumption ``h(w) = 0 <=> w = 0`` must decide. Among the fits
+    within ``chi2_min + max(9, chi2_min)`` (the closed form's candidates differ by their separately
+    fitted descending stage) the choice prefers, in this order: an ``h_bar`` with no other zero in the
+    range of ``w`` the data visit; a root inside the ascending staircase's range (not an
+    extrapolation); the smaller chi^2. The flag says whether distinct candidates tied on the first
+    two criteria."""
     chis = np.array([f[1] for f in fits])
     if not np.any(np.isfinite(chis)):
         return 0, False
     best = float(np.min(chis))
-    near = [i for i in np.argsort(chis) if chis[i] <= best + max(9.0, best)]
-    clean = [i for i in near if _other_zeros(kind, fits[i][0], data) == 0]
-    pool = clean or near
-    distinct = [i for i in pool if abs(fits[i][0][-3] - fits[pool[0]][0][-3]) > 1e-3 * (1 + abs(fits[pool[0]][0][-3]))]
-    return int(pool[0]), bool(distinct)
+    near = [int(i) for i in np.argsort(chis) if chis[i] <= best + max(9.0, best)]
+    lo, hi = float(data.up.min()), float(data.up.max())
+
+    def key(i):
+        th = fits[i][0]
+        a = th[-3] if kind == "backlash" else -th[-3]
+        return (_other_zeros(kind, th, data) > 0, not (lo <= a <= hi))
+
+    keys = {i: key(i) for i in near}
+    first = min(near, key=lambda i: (keys[i], chis[i]))
+    d0 = fits[first][0][-3]
+    distinct = [i for i in near if keys[i] == keys[first] and abs(fits[i][0][-3] - d0) > 1e-3 * (1 + abs(d0))]
+    return first, bool(distinct)
 
 
 def _from_generic(kind: str, a: float, sigma: float, b: float) -> tuple[float, float, float]:
@@ -276,10 +286,58 @@ class _TooFew(Exception):
 
 def _polyfit(u, x, se, p: int) -> tuple[np.ndarray, float]:
     """Weighted LS polynomial of degree ``p`` in numpy's domain-scaled basis; power coefficients."""
-    q = Polynomial.fit(u, x, p, w=1.0 / se)
-    r = (x - q(u)) / se
-    c = q.convert().coef
-    return np.pad(c, (0, p + 1 - c.size)), float(r @ r)
+    q = _WPoly(u, x, se, p)
+    return q.coef, q.chi2
+
+
+class _WPoly:
+    """Weighted least-squares polynomial fit in a Legendre basis on the data's scaled domain
+    (well conditioned, unlike the raw Vandermonde inverse of eq. 31), with the coefficients'
+    covariance so that ``sd(x)``, the standard error of the fitted value, is available."""
+
+    def __init__(self, u, x, se, p: int):
+        u, x, se = (np.asarray(a, float) for a in (u, x, se))
+        self.mid = 0.5 * (u.max() + u.min())
+        self.half = max(0.5 * (u.max() - u.min()), 1e-12)
+        A = np.polynomial.legendre.legvander((u - self.mid) / self.half, p) / se[:, None]
+        b = x / se
+        coef, *_ = np.linalg.lstsq(A, b, rcond=None)
+        self.leg = coef
+        self.cov = np.linalg.pinv(A.T @ A)
+        r = b - A @ coef
+        self.chi2 = float(r @ r)
+        self.p = p
+        # power basis in u: compose the Legendre series with t = (u - mid) / half
+        power = np.polynomial.legendre.leg2poly(coef)
+        pw = Polynomial(power)(Polynomial([-self.mid / self.half, 1.0 / self.half])).coef
+        self.coef = np.pad(pw, (0, p + 1 - pw.size))
+
+    def __call__(self, x):
+        return np.polynomial.legendre.legval((np.asarray(x, float) - self.mid) / self.half, self.leg)
+
+    def sd(self, x) -> np.ndarray:
+        V = np.polynomial.legendre.legvander((np.atleast_1d(np.asarray(x, float)) - self.mid) / self.half, self.p)
+        return np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", V, self.cov, V), 0.0))
+
+    def zero_crossings(self, lo: float, hi: float, z: float = 3.0) -> np.ndarray:
+        """Real roots in ``[lo, hi]`` that are significant sign changes (Remark 1.3).
+
+        Noise can turn a near-zero minimum of ``q`` into a pair of close real roots. Adjacent roots
+        between which ``q`` does not differ from 0 by ``z`` standard errors form a cluster; a
+        cluster with an even number of roots is no sign change and is dropped, an odd one counts as
+        one crossing at its middle root."""
+        rts = _real_roots(self.coef, lo, hi)
+        if rts.size <= 1:
+            return rts
+        clusters = [[rts[0]]]
+        for a, b in zip(rts[:-1], rts[1:]):
+            m = 0.5 * (a + b)
+            if abs(float(self(m))) < z * float(self.sd(m)[0]):
+                clusters[-1].append(b)
+            else:
+                clusters.append([b])
+        out = [c[len(c) // 2] for c in clusters if len(c) % 2 == 1]
+        return np.array(out) if out else rts
 
 
 def _real_roots(c: np.ndarray, lo: float, hi: float) -> np.ndarray:
@@ -361,10 +419,11 @@ def _paper_route(kind: str, p: int, data: _Data, j_a: int, j_d: int,
     if ia.size < p + 1:
         raise _TooFew("ascending")
     u, x, se = data.U[ia], data.X[ia], data.se[ia]
-    qc, _ = _polyfit(u, x, se, p)
+    qf = _WPoly(u, x, se, p)
+    qc = qf.coef
     U = data.U
     span = float(np.ptp(U))
-    roots = _real_roots(qc, float(U.min()) - span, float(U.max()) + span)
+    roots = qf.zero_crossings(float(U.min()) - span, float(U.max()) + span)
     if roots.size == 0:
         grid = np.linspace(U.min() - span, U.max() + span, 2001)
         roots = np.array([grid[np.argmin(np.abs(Polynomial(qc)(grid)))]])
@@ -387,6 +446,68 @@ def _paper_route(kind: str, p: int, data: _Data, j_a: int, j_d: int,
     first, _ = _pick(kind, [(r.theta, r.chi2) for r in out], data)
     rest = sorted((r for i, r in enumerate(out) if i != first), key=lambda r: r.chi2)
     return [out[first]] + rest
+
+
+def _memberships(kind: str, theta: np.ndarray, data: _Data) -> tuple[int, int]:
+    """``(j_a, j_d)`` that the parameters ``theta`` imply: levels on the horizontal paths (eqs. 7a, 14a)."""
+    v = _internal(kind, theta[-3], theta[-2], theta[-1], data)
+    n_up = data.n_up
+    top = float(InputNonlinearity(kind, 1.0, theta[-2], theta[-3], theta[-1]).ascending(
+        data.all_down[data.lead_down - 1]))
+    ja = int(np.argmin(np.r_[np.abs(v[:n_up] - v[0]) <= 1e-12, False]))
+    jd = int(np.argmin(np.r_[np.abs(v[n_up:] - top) <= 1e-12, False]))
+    return ja, jd
+
+
+def _route_with_paths(kind: str, p: int, data: _Data, j_a: int, j_d: int):
+    """The closed-form route with horizontal paths that agree with the borders it finds.
+
+    The tests of :func:`_flat_run` end a path at the first significant departure, so a false
+    rejection (at the family level ``alpha``) would put flat levels among the border points, and a
+    border level within noise of the path would stay on it. For a Backlash the route is tried with
+    the tests' ``j_a`` (then ``j_d``); if the borders it finds put other levels on the path, every
+    other value is tried and, among those whose borders agree with them, the one with the smallest
+    joint chi^2 replaces the tests' value when it fits better.
+    Returns ``(routes, j_a, j_d)``."""
+    if kind != "backlash":
+        return _paper_route(kind, p, data, j_a, j_d), j_a, j_d
+    n_up, n_dn = data.n_up, data.down.size
+
+    def by_distance(j, lo, hi):
+        return sorted(range(lo, hi + 1), key=lambda k: (abs(k - j), k < j))
+
+    def first_consistent(cands, make, which):
+        # cands[0] is the tests' value: kept when its borders agree with it, else the agreeing
+        # value with the smallest joint chi^2 if that fits better
+        first, best = None, None
+        for j in cands:
+            try:
+                routes = make(j)
+            except _TooFew:
+                continue
+            if not routes:
+                continue
+            agrees = _memberships(kind, routes[0].theta, data)[which] == j
+            if j == cands[0]:
+                first = (j, routes)
+                if agrees:
+                    return first
+            elif agrees and (best is None or routes[0].chi2 < best[1][0].chi2):
+                best = (j, routes)
+        if best is not None and (first is None or best[1][0].chi2 < first[1][0].chi2):
+            return best
+        return first or best
+
+    got = first_consistent([j_a] + [j for j in by_distance(j_a, 1, n_up - 2) if j != j_a],
+                           lambda j: _paper_route(kind, p, data, j, j_d), 0)
+    if got is None:
+        raise _TooFew("ascending")
+    ja = got[0]
+    got = first_consistent([j_d] + [j for j in by_distance(j_d, 0, n_dn - 2) if j != j_d],
+                           lambda j: _paper_route(kind, p, data, ja, j), 1)
+    if got is None:
+        raise _TooFew("descending")
+    return got[1], ja, got[0]
 
 
 # ------------------------------------------------------------------------------ joint NLS
@@ -447,6 +568,8 @@ class _Candidate:
     bic: float
     route: Optional[_Route] = None
     ambiguous: bool = False      # other roots of q fit as well (h has another zero in range)
+    j_a: int = 0                 # horizontal paths the closed form used
+    j_d: int = 0
 
 
 class NonlinearEstimator:
@@ -598,7 +721,7 @@ class NonlinearEstimator:
         for kind in kinds:
             for p in degrees:
                 try:
-                    routes = _paper_route(kind, p, data, j_a, j_d)
+                    routes, ja_p, jd_p = _route_with_paths(kind, p, data, j_a, j_d)
                 except _TooFew:
                     continue
                 if self.method == "paper":
@@ -606,16 +729,16 @@ class NonlinearEstimator:
                     theta, chi2 = best.theta, best.chi2
                     _, amb = _pick(kind, [(r.theta, r.chi2) for r in routes], data)
                     # the closed form is judged on the ascending fit, as the paper does
-                    ia = _asc_index(kind, j_a, n_up)
+                    ia = _asc_index(kind, ja_p, n_up)
                     _, chi2_sel = _polyfit(data.U[ia], data.X[ia], data.se[ia], p)
                     crit = chi2_sel + (p + 1) * math.log(max(ia.size, 2))
-                    table.append(_Candidate(kind, p, theta, chi2, crit, best, amb))
+                    table.append(_Candidate(kind, p, theta, chi2, crit, best, amb, ja_p, jd_p))
                 else:
                     fits = [_nls(kind, r.theta, data) for r in routes[:4]]
                     i, amb = _pick(kind, fits, data)
                     theta, chi2 = fits[i]
                     table.append(_Candidate(kind, p, theta, chi2, chi2 + (p + 3) * math.log(n),
-                                            routes[0], amb))
+                                            routes[0], amb, ja_p, jd_p))
         if not table:
             raise NonlinearIdentificationError("no model could be fitted to the staircase data")
 
@@ -648,7 +771,7 @@ class NonlinearEstimator:
         if self.method == "nls":
             cov = _nls_cov(kind, theta, data)
         else:
-            cov = self._paper_cov(kind, p, data, j_a, j_d, best.route.a, best.route.b)
+            cov = self._paper_cov(kind, p, data, best.j_a, best.j_d, best.route.a, best.route.b)
         chi2 = _chi2(kind, theta, data)
         gof_p = float(stats.chi2.sf(chi2, dof)) if dof > 0 else float("nan")
         if self.method == "nls" and dof > 0 and gof_p < 1e-3:
@@ -670,9 +793,12 @@ class NonlinearEstimator:
         # flat paths reported: the tests (Backlash); none for a Backlash-Inverse (Remark 1.4)
         V = _internal(kind, theta[-3], theta[-2], theta[-1], data)
         if kind == "backlash":
+            if (best.j_a, best.j_d) != (j_a, j_d):
+                warns.append(f"the flat-path tests gave j_a = {j_a}, j_d = {j_d}; the borders fit best and agree with "
+                             f"j_a = {best.j_a}, j_d = {best.j_d}, which are reported")
+            j_a, j_d = best.j_a, best.j_d
             flat_up, flat_down = j_a, j_d
-            ja_model = int(np.sum(np.isclose(V[:n_up], V[0], rtol=0, atol=1e-12)))
-            jd_model = int(np.sum(np.isclose(V[n_up:], self._v_top(kind, theta, data), rtol=0, atol=1e-12)))
+            ja_model, jd_model = _memberships(kind, theta, data)
             if (ja_model, jd_model) != (j_a, j_d):
                 warns.append(f"the tests put j_a = {j_a}, j_d = {j_d}; the fitted borders put j_a = {ja_model}, "
                              f"j_d = {jd_model} (a level lies within noise of the horizontal path)")

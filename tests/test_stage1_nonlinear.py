@@ -1,0 +1,334 @@
+"""Stage 1 (paper Section 4) against known truth: the estimates must land within their intervals.
+
+Every plant here is simulated (or an external rig wrapping a simulator), so the normalised truth of
+eqs. (4a-c) is known: ``hwid.model.from_config(cfg.plant).normalised()``.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hwid import HwidError, config, protocols
+from hwid.identify.nonlinear import (NonlinearEstimator, identify_nonlinear, load_nonlinear, save_nonlinear,
+                                     table1_rows)
+from hwid.identify.steady import steady_levels
+from hwid.model import from_config
+from hwid.plant import make_plant
+
+# An asymmetric Backlash (S^a != S^d), G with a zero (num has 2 coefficients) and G(0) = 0.5, and an h
+# with an even term that is not invertible: normalised h_bar(w) = w + 1.9 w^2 + w^3 (decreasing on
+# [-0.89, -0.37]) whose only real zero is w = 0.
+ASYM = """
+name: asym
+seed: 3
+sampling: {dt: 0.01}
+plant:
+  kind: hammerstein_wiener
+  input_nonlinearity: {type: backlash, slope_up: 0.8, slope_down: 1.3, d_plus: 0.3, d_minus: -0.4}
+  linear: {num: [0.5, 1.0], den: [1.0, 3.0, 2.0]}
+  output_nonlinearity: {polynomial: [0, 2.5, 11.875, 15.625]}
+  noise: {std: 0.01}
+protocols:
+  staircase:
+    levels_up: [-1.2, -1.1, -0.8, -0.5, -0.2, 0.1, 0.4, 0.7, 1.0, 1.2]
+    levels_down: [1.0, 0.6, 0.3, 0.0, -0.3, -0.6, -0.9, -1.1, -1.3]
+    hold: 20.0
+identification: {nonlinear: {max_degree: 5}}
+"""
+
+# A Backlash-Inverse with asymmetric slopes; h has real zeros besides 0 (at 1.75 and -1.15), outside
+# the range the data visit, so d^+ is identifiable but q(u) = h(u - d^+) has three real roots.
+BINV = """
+name: binv
+seed: 4
+sampling: {dt: 0.01}
+plant:
+  kind: hammerstein_wiener
+  input_nonlinearity: {type: backlash_inverse, slope_up: 1.0, slope_down: 1.1, d_plus: 0.2, d_minus: -0.1}
+  linear: {num: [0.1], den: [1.0, 0.7, 0.1]}
+  output_nonlinearity: {polynomial: [0, 1.0, 0.3, -0.5]}
+  noise: {std: 0.01}
+protocols:
+  staircase:
+    levels_up: [-0.8, -0.6, -0.4, -0.2, 0.0, 0.2, 0.4, 0.6, 0.8]
+    levels_down: [0.7, 0.5, 0.3, 0.1, -0.1, -0.3, -0.5, -0.7, -0.9]
+    hold: 100.0
+identification: {nonlinear: {max_degree: 5}}
+"""
+
+# The paper's h and backlash behind a fast G (time constant 0.2 s): short holds, cheap runs.
+FAST = """
+name: fast
+seed: 5
+sampling: {dt: 0.01}
+plant:
+  kind: hammerstein_wiener
+  input_nonlinearity: {type: backlash, slope_up: 1.0, slope_down: 1.0, d_plus: 0.5, d_minus: -0.5}
+  linear: {num: [5.0], den: [1.0, 5.0]}
+  output_nonlinearity: {polynomial: [0, 0.5, 0, -3.36, 0, 6.4]}
+  noise: {std: 0.01, ar: AR}
+protocols:
+  staircase:
+    levels_up: [-1.0, -0.7, -0.4, -0.1, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2]
+    levels_down: [1.0, 0.8, 0.6, 0.4, 0.25, 0.0, -0.3, -0.6, -1.0, -1.2, -1.4]
+    hold: HOLD
+identification: {nonlinear: {EXTRA}}
+"""
+
+
+def fast_cfg(ar: float = 0.0, hold: float = 5.0, extra: str = "") -> config.Config:
+    return config.loads(FAST.replace("AR", repr(ar)).replace("HOLD", repr(hold)).replace("EXTRA", extra))
+
+
+def true_X(cfg) -> np.ndarray:
+    """X_j = h_bar(F_bar[U_j]) of the normalised truth along both staircases (eqs. 5, 8)."""
+    m = from_config(cfg.plant).normalised()
+    up, down = protocols.staircases(cfg)
+    state = -1e300 if m.input.type == "backlash" else 0.0
+    return np.concatenate([m.output(m.input.steady(s.all_levels, state))[s.lead_in.size:] for s in (up, down)])
+
+
+def assert_borders_inside(res, truth_input):
+    for key in ("d_plus", "slope_down", "d_minus"):
+        lo, hi = res.ci[key]
+        true = getattr(truth_input, key)
+        assert lo <= true <= hi, f"{key}: true {true} outside [{lo}, {hi}] (estimate {getattr(res, key)})"
+
+
+def assert_h_inside(res, truth_output, z: float = 3.5):
+    c_true = np.zeros(res.degree + 1)
+    ct = np.asarray(truth_output.coefficients)
+    c_true[:ct.size] = ct
+    for i, ((lo, hi), c, t) in enumerate(zip(res.ci["h_coefficients"], res.h_coefficients, c_true)):
+        if i == 0:
+            assert c == 0.0
+            continue
+        half = (hi - lo) / 2
+        assert abs(c - t) <= z / 1.96 * half, f"c{i}: {c} vs true {t}, interval [{lo}, {hi}]"
+
+
+# ------------------------------------------------------------------------------------ the paper
+
+@pytest.fixture(scope="module")
+def paper_result():
+    cfg = config.load(__import__("pathlib").Path(__file__).resolve().parents[1] / "configs" / "paper.yaml")
+    res, records = identify_nonlinear(cfg)
+    return cfg, res, records
+
+
+def test_paper_plant_reproduces_section_6_1(paper_result):
+    cfg, res, _ = paper_result
+    truth = from_config(cfg.plant).normalised()
+    assert res.type == "backlash" and res.degree == 5
+    assert (res.flat_up, res.flat_down) == (4, 5)            # j_a = 4, j_d = 5 as in Section 6.1
+    assert abs(res.d_plus - 0.5) <= 0.01
+    assert abs(res.slope_down - 1.0) <= 0.02
+    assert abs(res.d_minus + 0.5) <= 0.01
+    assert_borders_inside(res, truth.input)
+    assert_h_inside(res, truth.output, z=1.96)               # every h coefficient inside its 95 % interval
+    # the intervals are tight: the noise (sigma = 0.01) averages over ~10^4 samples a level
+    assert res.ci["d_plus"][1] - res.ci["d_plus"][0] < 0.005
+
+
+def test_paper_table1_rows(paper_result):
+    cfg, res, _ = paper_result
+    tab = table1_rows(cfg, res)
+    rows = tab["rows"]
+    assert len(rows) == 21
+    Xt = true_X(cfg)
+    z = (np.array(res.X_hat) - Xt) / np.array(res.X_hat_se)
+    assert np.all(np.abs(z) < 4.0)
+    assert sum(not r["inside"] for r in rows) <= 4            # 95 % intervals: ~1 of 21 misses by design
+    for r in rows:
+        if r["paper_X"] is not None:                         # the paper's X_j (2 digits) are the truth
+            assert abs(r["paper_X"] - r["true_X"]) < 0.006
+            assert abs(r["X_hat"] - r["true_X"]) < 0.001     # ours: 10x closer than the paper's own
+    assert all(b["inside"] for b in tab["borders"])
+
+
+def test_paper_method_closed_form(paper_result):
+    cfg, _, records = paper_result
+    up, down = protocols.staircases(cfg)
+    est = NonlinearEstimator(method="paper").fit(records[0], records[1], up, down)
+    res = est.result_
+    truth = from_config(cfg.plant).normalised()
+    assert res.method == "paper" and res.type == "backlash" and res.degree == 5
+    assert abs(res.d_plus - 0.5) <= 0.01 and abs(res.slope_down - 1) <= 0.02 and abs(res.d_minus + 0.5) <= 0.01
+    # delta-method intervals of the closed form: this realisation puts d^+ 2.6 standard errors low
+    # (the joint fit, which also uses the flat and descending levels, is 1.8 low); check 3.5
+    for key in ("d_plus", "slope_down", "d_minus"):
+        lo, hi = res.ci[key]
+        assert abs(getattr(res, key) - getattr(truth.input, key)) < 3.5 / 1.96 * (hi - lo) / 2
+    assert est.d_plus_ == res.d_plus and est.h_coef_.shape == (6,)
+
+
+# ------------------------------------------------------------------------------ beyond the paper
+
+def test_asymmetric_backlash_zero_in_G_even_h():
+    cfg = config.loads(ASYM)
+    res, _ = identify_nonlinear(cfg)
+    truth = from_config(cfg.plant).normalised()
+    assert truth.input.slope_down == pytest.approx(1.625)    # S^d / S^a
+    assert res.type == "backlash"
+    assert res.degree == 3                                   # selected by BIC
+    assert (res.flat_up, res.flat_down) == (2, 3)
+    assert_borders_inside(res, truth.input)
+    assert_h_inside(res, truth.output)
+    assert res.h_coefficients[2] == pytest.approx(1.9, abs=0.01)          # the even term
+    # the range identified covers the non-monotone part of h_bar
+    assert res.w_range[0] < -0.89 and res.w_range[1] > 0.8
+
+
+def test_backlash_inverse():
+    cfg = config.loads(BINV)
+    res, _ = identify_nonlinear(cfg)
+    truth = from_config(cfg.plant).normalised()
+    assert res.type == "backlash_inverse"
+    assert "no horizontal path" in res.evidence and "BIC prefers backlash_inverse" in res.evidence
+    assert (res.flat_up, res.flat_down) == (0, 0)            # Remark 1.4
+    assert res.degree == 3
+    assert_borders_inside(res, truth.input)
+    assert_h_inside(res, truth.output)
+    assert not any("ambiguous" in w for w in res.warnings)
+    # the model it returns reproduces the steady states of both staircases
+    f = res.input_nonlinearity()
+    up, down = protocols.staircases(cfg)
+    X = np.concatenate([res.h(f.steady(s.all_levels, 0.0))[2:] for s in (up, down)])
+    np.testing.assert_allclose(X, true_X(cfg), atol=2e-3)
+
+
+def test_backlash_inverse_closed_form():
+    cfg = config.loads(BINV.replace("max_degree: 5", "max_degree: 5, method: paper"))
+    res, _ = identify_nonlinear(cfg)
+    truth = from_config(cfg.plant).normalised()
+    assert res.type == "backlash_inverse" and res.method == "paper"
+    assert_borders_inside(res, truth.input)
+
+
+def test_working_interval_too_narrow():
+    # levels inside the gap (d^- = -0.5 < u < d^+ = 0.5): the gear never moves (Fig. 6a)
+    text = FAST.replace("AR", "0.0").replace("HOLD", "5.0").replace("EXTRA", "")
+    text = text.replace("[-1.0, -0.7, -0.4, -0.1, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2]", "[-0.3, -0.1, 0.1, 0.3]")
+    text = text.replace("[1.0, 0.8, 0.6, 0.4, 0.25, 0.0, -0.3, -0.6, -1.0, -1.2, -1.4]", "[0.2, 0.0, -0.2, -0.4]")
+    cfg = config.loads(text)
+    with pytest.raises(HwidError, match=r"never leaves.*\[-0\.4, 0\.3\] is too narrow.*Fig\. 6a.*widen"):
+        identify_nonlinear(cfg)
+
+
+def test_too_few_levels_for_the_degree():
+    text = FAST.replace("AR", "0.0").replace("HOLD", "5.0").replace("EXTRA", "degree: 5")
+    text = text.replace("[-1.0, -0.7, -0.4, -0.1, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2]",
+                        "[-1.0, -0.7, -0.4, -0.1, 0.4, 0.8, 1.2]")
+    cfg = config.loads(text)                                  # 7 levels >= p + 1: the config is valid ...
+    with pytest.raises(HwidError, match=r"N - j_a = 3 .*degree 5.*eq\. \(11\).*N - j_a >= p \+ 1 = 6"):
+        identify_nonlinear(cfg)                               # ... but only 3 lie on the border
+
+
+def test_degree_selection_is_capped_by_eq_11_and_says_so():
+    # 6 border levels for a degree-5 h: p = 5 is the most eq. (11) allows, so it cannot be checked
+    res, _ = identify_nonlinear(fast_cfg(extra="input_type: backlash"))
+    assert res.degree == 5
+    assert any("highest the N - j_a = 6" in w for w in res.warnings)
+
+
+def test_coloured_noise_standard_errors_are_honest():
+    """AR(1) noise with pole 0.95 (integrated correlation time 39 samples): a white-noise standard
+    error would be sqrt(39) ~ 6 times too small; ours must cover the truth at the nominal rate."""
+    cfg = fast_cfg(ar=0.95, hold=20.0, extra="degree: 5, input_type: backlash")
+    Xt = true_X(cfg)
+    up, down = protocols.staircases(cfg)
+    z, naive_ratio, inside = [], [], 0
+    truth = from_config(cfg.plant).normalised().input
+    for ss in np.random.SeedSequence(777).spawn(20):
+        res, recs = identify_nonlinear(cfg, plant=make_plant(cfg, seed=ss))
+        z.append((np.array(res.X_hat) - Xt) / np.array(res.X_hat_se))
+        y = recs[0].y[up.starts[0]:up.stops[0]]
+        naive_ratio.append(res.X_hat_se[0] / (y.std() / np.sqrt(res.fit["n_averaged"][0])))
+        inside += sum(res.ci[k][0] <= getattr(truth, k) <= res.ci[k][1] for k in ("d_plus", "slope_down", "d_minus"))
+    z = np.concatenate(z)                                     # 420 standardised errors
+    assert 0.85 < z.std() < 1.2
+    assert np.mean(np.abs(z) > 1.96) < 0.09
+    assert np.median(naive_ratio) > 4.0                       # the white-noise SE would be far too small
+    assert inside >= 52                                       # of 60 border intervals (binomial 95 %: ~57)
+
+
+def test_steady_state_detection_finds_the_transient():
+    """MSER-5 + drift test: a level with a slow transient is cut later than a settled one, and the
+    average is unbiased to well within its standard error."""
+    rng = np.random.default_rng(np.random.SeedSequence(3))
+    n, tau = 4000, 200.0
+    t = np.arange(n)
+    settled = 0.3 + 0.01 * rng.standard_normal(n)
+    moving = 0.3 + 0.5 * np.exp(-t / tau) + 0.01 * rng.standard_normal(n)
+    st = steady_levels([settled, moving])
+    assert st.first[0] < 0.1 * n
+    assert st.first[1] > 6 * tau                               # 0.5 e^-6 = 1e-3: below the noise
+    assert abs(st.mean[1] - 0.3) < 3 * st.se[1]
+    assert st.settled.all()
+
+
+def test_external_plant_and_journal(tmp_path, monkeypatch):
+    import sys
+    monkeypatch.syspath_prepend(str(__import__("pathlib").Path(__file__).resolve().parent))
+    import stage1_rig
+    text = """
+name: rig
+sampling: {dt: 0.01}
+plant: {kind: external, callable: "stage1_rig:rig"}
+protocols:
+  staircase:
+    levels_up: [-1.0, -0.8, -0.5, -0.2, 0.1, 0.4, 0.7, 1.0, 1.3]
+    levels_down: [1.1, 0.7, 0.4, 0.1, -0.2, -0.5, -0.8, -1.1]
+    hold: 20.0
+identification: {nonlinear: {max_degree: 4}}
+"""
+    cfg = config.loads(text)
+    calls = len(stage1_rig.CALLS)
+    res, records = identify_nonlinear(cfg, journal_dir=tmp_path / "rig_journal")
+    assert len(stage1_rig.CALLS) == calls + 2                 # one call per staircase
+    assert len(list((tmp_path / "rig_journal").glob("*.npz"))) == 2
+    truth = stage1_rig.MODEL.normalised()
+    assert res.type == "backlash" and res.degree == 3
+    assert (res.flat_up, res.flat_down) == (2, 2)
+    assert_borders_inside(res, truth.input)
+    assert_h_inside(res, truth.output)
+    # a rerun reads the journal instead of driving the rig again, and gives the same result
+    res2, _ = identify_nonlinear(cfg, journal_dir=tmp_path / "rig_journal")
+    assert len(stage1_rig.CALLS) == calls + 2
+    assert res2.d_plus == res.d_plus
+    del sys.modules["stage1_rig"]
+
+
+def test_save_load_and_simulation_h5(tmp_path):
+    from hwid.results import open_results
+    from hwid.simulate import simulate
+    cfg = fast_cfg(extra="input_type: backlash")
+    sim = simulate(cfg, tmp_path / "sim")
+    res_data, records = identify_nonlinear(cfg, data=sim)
+    res_plant, _ = identify_nonlinear(cfg)                    # same seed, same experiment names: same noise
+    assert res_data.d_plus == res_plant.d_plus and res_data.X_hat == res_plant.X_hat
+    path = save_nonlinear(tmp_path / "out", cfg, res_data, records)
+    assert path.name == "nonlinear.h5"
+    with open_results(path, "nonlinear", cfg) as f:
+        assert set(f["experiments"]) == {"staircase_up", "staircase_down"}
+    back = load_nonlinear(tmp_path / "out", cfg)
+    for key in ("type", "d_plus", "slope_down", "d_minus", "h_coefficients", "degree", "flat_up", "flat_down",
+                "levels", "X_hat", "X_hat_se", "w_range", "evidence", "warnings", "param_names", "method"):
+        assert getattr(back, key) == getattr(res_data, key), key
+    np.testing.assert_array_equal(back.cov, res_data.cov)
+    assert back.ci["h_coefficients"] == res_data.ci["h_coefficients"]
+    assert back.ci["d_plus"] == res_data.ci["d_plus"]
+    assert back.h(0.3) == pytest.approx(res_data.h(0.3))
+
+
+def test_data_that_do_not_match_the_config(tmp_path):
+    from hwid.simulate import simulate
+    sim = simulate(fast_cfg(), tmp_path / "sim")
+    other = fast_cfg(hold=4.0)                                # a different staircase
+    with pytest.raises(HwidError, match="staircase"):
+        identify_nonlinear(other, data=sim)
+
+
+def test_estimator_rejects_bad_settings():
+    with pytest.raises(ValueError, match="method"):
+        NonlinearEstimator(method="magic").fit(None, None, None, None)
