@@ -454,10 +454,14 @@ def with_overrides(cfg: Config, overrides: dict[str, Any]) -> Config:
     for key, value in overrides.items():
         node = data
         parts = key.split(".")
-        for part in parts[:-1]:
-            if not isinstance(node, dict) or part not in node:
-                node.setdefault(part, {}) if isinstance(node, dict) else None
-            node = node[part]
-        node[parts[-1]] = value
+        for i, part in enumerate(parts):
+            if not isinstance(node, dict):
+                where = ".".join(parts[:i]) or "(top level)"
+                raise ConfigError(f"{cfg.source_path}: {key}: cannot set it, {where} is not a mapping "
+                                  f"of keys (it is {type(node).__name__} {str(node)[:40]})")
+            if i == len(parts) - 1:
+                node[part] = value
+            else:
+                node = node.setdefault(part, {})
     text = yaml.safe_dump(data, sort_keys=False)
     return loads(text, source_path=f"{cfg.source_path} [{', '.join(f'{k}={v}' for k, v in overrides.items())}]")

@@ -240,6 +240,27 @@ def test_simulation_overflow_is_an_error(tmp_path, capsys):
     assert not (tmp_path / "out" / "simulation.h5").exists()
 
 
+# ---------------------------------------------------------------- sweep keys (hwid batch --sweep -> config.with_overrides)
+
+@pytest.mark.parametrize("sweep,fragment", [
+    ("seed.x=1", "seed.x: cannot set it, seed is not a mapping of keys"),
+    ("protocols.sine.frequencies.0=1.0", "protocols.sine.frequencies is not a mapping of keys"),
+    ("plant.noise.sdt=0.1", "plant.noise.sdt: unknown key 'sdt' (did you mean 'std'?)"),
+    ("sampling.dt=.nan", "sampling.dt: must be a finite number"),
+    ("plant.noise.std", "expected KEY=V1,V2,..."),
+], ids=["through-scalar", "through-list", "misspelt", "nan", "no-values"])
+def test_bad_sweep(sweep, fragment, tmp_path, capsys):
+    cfg = rigs.write(tmp_path / "ok.yaml", rigs.small())
+    code, _, err = run_cli(["batch", cfg, "--runs", "1", "--out", tmp_path / "out", "--sweep", sweep], capsys)
+    assert_one_line_error(code, err, fragment)
+
+
+def test_with_overrides_names_the_file():
+    cfg = C.loads(_config_text({}), source_path="base.yaml")
+    with pytest.raises(C.ConfigError, match=r"^base\.yaml: seed\.x: cannot set it"):
+        C.with_overrides(cfg, {"seed.x": 1})
+
+
 # ---------------------------------------------------------------- usage errors (click) are one line too
 
 @pytest.mark.parametrize("argv,fragment", [
