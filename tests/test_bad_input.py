@@ -366,6 +366,29 @@ def test_bad_results_file(case_id, make, kind, fragment, simulated, tmp_path):
     assert fragment in msg, msg
 
 
+# the same checks through the commands that read results files
+COMMAND_CASES = [
+    ("nonlinear-data-missing", lambda s, d: d / "nope.h5", "identify-nonlinear", "no such file"),
+    ("nonlinear-data-truncated", _truncated, "identify-nonlinear", "damaged (its checksum does not match"),
+    ("nonlinear-data-foreign", _foreign, "identify-nonlinear", "not written by hwid"),
+    ("nonlinear-data-newer-format", lambda s, d: _copy(s, d, hwid_format=FORMAT + 1), "identify-nonlinear",
+     "this hwid reads format"),
+    ("linear-given-simulation", lambda s, d: _copy(s, d), "identify-linear", "is a 'simulation' file, expected 'nonlinear'"),
+    ("linear-nonlinear-missing", lambda s, d: d / "nope.h5", "identify-linear", "no such file"),
+    ("linear-nonlinear-flipped", lambda s, d: _flip(s, d, 1000), "identify-linear", "damaged (its checksum"),
+]
+
+
+@pytest.mark.parametrize("case_id,make,command,fragment", COMMAND_CASES, ids=[c[0] for c in COMMAND_CASES])
+def test_bad_results_file_through_commands(case_id, make, command, fragment, simulated, tmp_path, capsys):
+    src, cfg = simulated
+    path = make(src, tmp_path / "case.h5")
+    cfg_path = rigs.write(tmp_path / "cfg.yaml", cfg.source_text)
+    opt = "--data" if command == "identify-nonlinear" else "--nonlinear"
+    code, _, err = run_cli([command, cfg_path, opt, path, "--out", tmp_path / "out"], capsys)
+    assert_one_line_error(code, err, f"{path}: ", fragment)
+
+
 def test_results_from_another_config(simulated, tmp_path):
     src, cfg = simulated
     other = C.loads(cfg.source_text.replace("seed: 3", "seed: 4"), source_path=str(tmp_path / "other.yaml"))
