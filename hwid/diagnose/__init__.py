@@ -128,7 +128,7 @@ def _scale(d, model, exps, sim_fit, sim_val) -> Scale:
                  float(np.max(np.abs(vs))), d.settle_s, d.omega_c, float(max(e.n for e in exps) * d.dt))
 
 
-def _where_block(verdict_effect, cands, nf, regions_stats, test) -> str:
+def _where_block(verdict_effect, cands, nf, regions_stats, test, drift_ok=False) -> str:
     if verdict_effect == "none":
         return "none"
     if verdict_effect in BLOCK:
@@ -137,7 +137,7 @@ def _where_block(verdict_effect, cands, nf, regions_stats, test) -> str:
     # else from where the excess lies
     if nf.slow_z > 10 and nf.slow_rms ** 2 > 0.5 * max(test.ratio - 1, 0) * nf.sigma ** 2:
         return "noise"
-    eligible = [c for c in cands if c.effect != "drift" or nf.slow_z > 10]
+    eligible = [c for c in cands if c.effect != "drift" or drift_ok]
     best = eligible[0] if eligible else None
     if best is not None and best.explained_fraction >= 0.2:
         return best.block
@@ -214,7 +214,12 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
             raise HwidError(f"unknown effect(s) {', '.join(unknown)}; the catalogue is {', '.join(CATALOGUE)}")
         effs = {k: v for k, v in effs.items() if k in effects}
     cands = R.fit_all(fitter, effs, echo=echo)
-    drift_ok = bool(nf.slow_z > 10)
+    x_rep = {exps[i].name: sim_val.x[j] for j, i in enumerate(val_idx)}
+    add = Gp.drift_is_additive(pairs, [x_rep[e.name] for e in exps if e.repeat_of],
+                               max(int(round(d.settle_s / (2 * d.dt))), 5), nf.sigma)
+    drift_ok = bool(nf.slow_z > 10 and add["additive"])
+    if not drift_ok:    # drift listed last: the plant repeats itself, or what changes is not additive
+        cands = [c for c in cands if c.effect != "drift"] + [c for c in cands if c.effect == "drift"]
     v = R.verdict(cands, test.significant, drift_ok)
     t_fit = time.perf_counter() - t0
 
@@ -233,13 +238,13 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
         "frequencies": Gp.frequencies(val_exps, res_before, nf, d.dt) if test.significant else [],
         "trend": "none (gap is noise)",
         "regions": regions_before,
-        "repeatability": {"slow_rms": nf.slow_rms, "slow_z": nf.slow_z,
-                          "repeats_differ": drift_ok},
+        "repeatability": {"slow_rms": nf.slow_rms, "slow_z": nf.slow_z, "repeats_differ": bool(nf.slow_z > 10),
+                          "difference_follows_output": add["output_share"], "additive": add["additive"]},
     }
     if test.significant:
         tr = Gp.trend(val_exps, res_before, nf.sigma, d.dt)
         where["trend"], where["trend_families"] = tr["trend"], tr["families"]
-    block = _where_block(name, cands, nf, regions_before, test)
+    block = _where_block(name, cands, nf, regions_before, test, drift_ok)
     summary = {
         "verdict": {"effect": name, "block": block, "explained_fraction": float(ef)},
         "gap_before": float(gap_before), "gap_after": float(gap_after), "noise_floor": float(nf.sigma),

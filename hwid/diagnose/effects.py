@@ -353,35 +353,46 @@ class InputDeadzone(Effect):
 
 
 class CurvedBorders(Effect):
-    """Each border of F bends: ``border(u) + k (c2 s^2 + c3 s^3)`` with ``s = (u - u_c)/W`` the
-    input relative to the middle of the working range, ``k`` the border's scale (``S W``)."""
+    """Each border of F becomes a curve: its straight line plus
+    ``k (c0 + c1 P1(s) + c2 P2(s) + c3 P3(s) + c4 P4(s))``, Legendre polynomials of ``s``, the
+    input scaled to [-1, 1] over the experiments' range, ``k`` the border's scale (slope x
+    half-range). ``c0, c1`` re-estimate the straight part the curve is measured against (a model's
+    straight border is the best line through a curved one, not the curve's chord)."""
 
     def __init__(self):
-        super().__init__("curved_borders", "input", ("c2_up", "c3_up", "c2_down", "c3_down"),
-                         "the borders of F are cubic curves instead of straight lines")
+        super().__init__("curved_borders", "input",
+                         tuple(f"c{k}_{side}" for side in ("up", "down") for k in range(5)),
+                         "the borders of F are curves instead of straight lines", interacts=("d_plus", "d_minus"))
 
     def bounds(self, sc):
-        return np.full(4, -0.6), np.full(4, 0.6)
+        return np.full(10, -0.4), np.full(10, 0.4)
 
     def starts(self, sc):
-        out = [np.zeros(4)]
-        for a, b in ((0.1, 0.0), (-0.1, 0.0), (0.0, 0.1), (0.0, -0.1), (0.1, 0.1), (-0.1, -0.1)):
-            out.append(np.array([a, b, a, b]))
+        out = [np.zeros(10)]
+        for c in (0.05, -0.05):
+            z = np.zeros(10)
+            z[[2, 7]] = c
+            out.append(z)
         return out
+
+    @staticmethod
+    def _bend(s, c):
+        return np.polynomial.legendre.legval(s, c)
 
     def simulate(self, sim, theta, i):
         F = sim.model.input
         u = sim.inputs[i]
         sc = self._scale
         s = (u - sc[0]) / sc[1]
+        th = np.asarray(theta, float)
         if F.type == "backlash":
-            up = F.ascending(u) + F.slope_up * sc[1] * (theta[0] * s ** 2 + theta[1] * s ** 3)
-            dn = F.descending(u) + F.slope_down * sc[1] * (theta[2] * s ** 2 + theta[3] * s ** 3)
+            up = F.ascending(u) + F.slope_up * sc[1] * self._bend(s, th[:5])
+            dn = F.descending(u) + F.slope_down * sc[1] * self._bend(s, th[5:])
             v0 = float(np.clip(0.0, up[0], dn[0])) if dn[0] >= up[0] else 0.5 * (up[0] + dn[0])
             v = _play_arrays(np.ascontiguousarray(up), np.ascontiguousarray(np.maximum(dn, up)), v0)
         else:
-            up = F.ascending(u) + sc[1] / F.slope_up * (theta[0] * s ** 2 + theta[1] * s ** 3)
-            dn = F.descending(u) + sc[1] / F.slope_down * (theta[2] * s ** 2 + theta[3] * s ** 3)
+            up = F.ascending(u) + sc[1] / F.slope_up * self._bend(s, th[:5])
+            dn = F.descending(u) + sc[1] / F.slope_down * self._bend(s, th[5:])
             v = _direction_arrays(u, np.ascontiguousarray(up), np.ascontiguousarray(dn), 0.5 * (up[0] + dn[0]))
         return sim.from_v(v)
 

@@ -179,12 +179,33 @@ def _multisine(d: Design, rng: np.random.Generator, n: int, rms: float) -> np.nd
     return z * (rms / np.std(z))
 
 
+def _uncrossed(F, lo: float, hi: float, width: float) -> tuple[float, float]:
+    """Narrow ``[lo, hi]`` to where the model's borders do not cross (beyond, F is undefined)."""
+    a = F.slope_up - F.slope_down if F.type == "backlash" else 1 / F.slope_up - 1 / F.slope_down
+    if abs(a) < 1e-12:
+        return lo, hi
+    if F.type == "backlash":
+        # S^a (u - d+) <= S^d (u - d-)
+        u_x = (F.slope_up * F.d_plus - F.slope_down * F.d_minus) / a
+        upper = a > 0
+    else:
+        # u/S^a + d+ >= u/S^d + d-
+        u_x = (F.d_minus - F.d_plus) / a
+        upper = a < 0
+    margin = 0.05 * width
+    if upper and u_x - margin < hi:
+        hi = max(u_x - margin, 0.5 * (lo + hi))
+    if not upper and u_x + margin > lo:
+        lo = min(u_x + margin, 0.5 * (lo + hi))
+    return lo, hi
+
+
 def design(cfg, model: HWModel, d: Design | None = None) -> list[Experiment]:
     """The diagnosis experiments in the order they are run on the plant."""
     d = d or design_from(cfg, model)
     dt, H, W, c = d.dt, d.settle_s, d.width, d.centre
-    lo, hi = d.u_lo - 0.15 * W, d.u_hi + 0.15 * W
     F = model.input
+    lo, hi = _uncrossed(F, d.u_lo - 0.15 * W, d.u_hi + 0.15 * W, W)
     root = np.random.SeedSequence(d.seed, spawn_key=(zlib.crc32(b"hwid.diagnose"),))
     rng_fit, rng_val = (np.random.default_rng(s) for s in root.spawn(2))
     exps: list[Experiment] = []

@@ -98,7 +98,9 @@ def noise_floor(pairs, width: int, y_scale: float) -> NoiseFloor:
     if not parts:
         return NoiseFloor(1e-6 * y_scale, 1.0, 0, 0.0, 0.0, np.zeros(0))
     e = np.concatenate(parts)
-    sigma = float(max(np.std(e), 1e-6 * y_scale))
+    # the median over pairs: a pair whose difference carries more than noise (a gain that wanders
+    # multiplies a fast input's fast output) does not inflate the floor of the others
+    sigma = float(max(np.median([np.std(p) for p in parts]), 1e-6 * y_scale))
     kappa = _kappa(e)
     # slow part: non-overlapping block means of d/sqrt(2) over `width` samples; for noise alone
     # their mean square is sigma^2 kappa / width with relative s.d. sqrt(2 / blocks)
@@ -283,3 +285,31 @@ def trend(exps, residuals, sigma: float, dt: float) -> dict:
     text = "grows with " + " and ".join(n for _, n in grows) if grows else "no clear trend"
     return {"trend": text, "growth": {n: float(g) for g, n in grows},
             "families": {k: [[float(a), float(b)] for a, b in v] for k, v in fams.items()}}
+
+
+def drift_is_additive(pairs, models, width: int, sigma: float) -> dict:
+    """Is what changes between repeats an additive offset (a drift), or does it scale with the
+    output (a gain that wanders, which is not in the catalogue)?
+
+    For each repeated pair, ``d = y_a - y_b`` is regressed on a cubic in time (an additive drift is
+    smooth in time whatever the input does), then also on ``x`` and ``x t`` (``x`` the model output,
+    centred). ``output_share`` is the share of the excess (above noise) residual of the first fit
+    that the output terms remove; a drift is ``additive`` when it is below one half.
+    """
+    drop = excess = 0.0
+    for (ya, yb, mask), x in zip(pairs, models):
+        m = np.asarray(mask, bool)
+        d = (np.asarray(ya, float) - np.asarray(yb, float))[m]
+        xx = np.asarray(x, float)[m]
+        if d.size < 20:
+            continue
+        t = np.linspace(-1, 1, d.size)
+        A = np.vander(t, 4)
+        xc = xx - np.mean(xx)
+        B = np.column_stack([A, xc, xc * t])
+        ra = d - A @ np.linalg.lstsq(A, d, rcond=None)[0]
+        rb = d - B @ np.linalg.lstsq(B, d, rcond=None)[0]
+        drop += float(ra @ ra - rb @ rb)
+        excess += max(float(ra @ ra) - 2 * sigma ** 2 * d.size, 0.0)
+    share = drop / excess if excess > 0 else 0.0
+    return {"output_share": float(min(share, 1.0)), "additive": bool(share < 0.5)}
