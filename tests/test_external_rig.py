@@ -121,7 +121,7 @@ def test_hanging_rig_does_not_keep_the_process_alive(tmp_path):
     t0 = time.perf_counter()
     r = subprocess.run([str(HWID), "simulate", str(cfg), "--out", str(tmp_path / "out")],
                        capture_output=True, text=True, env=env, timeout=60)
-    assert time.perf_counter() - t0 < 15          # the hung call waits 20 s; hwid does not
+    assert time.perf_counter() - t0 < 19          # the hung call waits 20 s; hwid does not
     assert r.returncode == 2
     assert "did not return within 0.5 s (plant.timeout)" in one_line(r.stderr)
 
