@@ -302,7 +302,7 @@ identification: {nonlinear: {max_degree: 4}}
 def test_save_load_and_simulation_h5(tmp_path):
     from hwid.results import open_results
     from hwid.simulate import simulate
-    cfg = fast_cfg(extra="input_type: backlash")
+    cfg = fast_cfg(extra="input_type: backlash, degree: 5")
     sim = simulate(cfg, tmp_path / "sim")
     res_data, records = identify_nonlinear(cfg, data=sim)
     res_plant, _ = identify_nonlinear(cfg)                    # same seed, same experiment names: same noise
