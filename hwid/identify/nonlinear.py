@@ -680,7 +680,7 @@ class NonlinearEstimator:
                 f"the same steady output within noise): the working interval [u_m, u_M] = [{lo:g}, {hi:g}] is too "
                 "narrow to reach the descending border (Section 3, Fig. 6a); widen protocols.staircase levels")
 
-        n_border_up = n_up - j_a if j_a > 1 else n_up - 1
+        n_border_up = n_up - j_a      # j_a >= 1: the first level sits on the descending border
         n_border_dn = n_dn - j_d
         if n_border_up < 2:
             raise NonlinearIdentificationError(
@@ -819,11 +819,6 @@ class NonlinearEstimator:
         self.flat_up_, self.flat_down_ = r.flat_up, r.flat_down
         self.selection_ = table
         return self
-
-    @staticmethod
-    def _v_top(kind, theta, data):
-        f = InputNonlinearity(kind, 1.0, theta[-2], theta[-3], theta[-1])
-        return float(f.ascending(data.all_down[data.lead_down - 1]))
 
     def _paper_cov(self, kind, p, data, j_a, j_d, a, b) -> np.ndarray:
         """Delta method through the closed form: ``J diag(se^2) J^T`` with ``J = d theta / d X_hat``."""
