@@ -168,22 +168,47 @@ def read_dict(group: h5py.Group) -> dict:
     return out
 
 
-def write_records(group: h5py.Group, records) -> None:
-    """One subgroup per experiment: ``t, u, y`` and, for simulated plants, ``v, w, x`` (ground truth)."""
+def write_records(group: h5py.Group, records, truth_tail: dict | None = None) -> None:
+    """One subgroup per experiment: ``u, y`` (whole) and, for simulated plants, ``v, w, x`` (ground
+    truth) and ``z``.
+
+    ``truth_tail`` maps experiment names to a sample count: for those, only the last samples of
+    ``v, w, x, z`` are stored (dataset attribute ``offset`` = index of the first stored sample), which
+    keeps files of long periodic experiments small; :func:`read_records` pads the rest with NaN.
+    The measured ``u, y`` are always stored whole."""
     for r in records:
         g = group.require_group(r.name)
+        tail = (truth_tail or {}).get(r.name)
         for key in ("u", "y", "v", "w", "x", "z"):
             arr = getattr(r, key)
             if arr is not None:
                 if key in g:
                     del g[key]
-                ds = g.create_dataset(key, data=np.asarray(arr, float), compression="gzip", shuffle=True)
+                arr = np.asarray(arr, float)
+                offset = 0
+                if key not in ("u", "y") and tail is not None and arr.size > tail:
+                    offset = arr.size - int(tail)
+                    arr = arr[offset:]
+                ds = g.create_dataset(key, data=arr, compression="gzip", shuffle=True)
+                if offset:
+                    ds.attrs["offset"] = offset
                 if key in ("v", "w", "x"):
                     ds.attrs["ground_truth"] = True
         g.attrs["dt"] = r.dt
         g.attrs["n"] = r.u.size
         for k, v in r.attrs.items():
             g.attrs[k] = v if isinstance(v, (str, int, float, bool)) else json.dumps(v)
+
+
+def read_padded(ds, n: int) -> np.ndarray:
+    """A dataset as float64; one stored from ``offset`` on is NaN-padded to ``n`` samples."""
+    data = np.asarray(ds[()], dtype=float)
+    offset = int(ds.attrs.get("offset", 0))
+    if offset and n == offset + data.size:
+        full = np.full(n, np.nan)
+        full[offset:] = data
+        return full
+    return data
 
 
 def read_records(group: h5py.Group) -> dict:
@@ -194,7 +219,7 @@ def read_records(group: h5py.Group) -> dict:
     try:
         for name, g in group.items():
             where = f"{group.file.filename}:{g.name}"
-            kw = {k: (np.asarray(g[k][()], dtype=float) if k in g else None) for k in ("u", "y", "v", "w", "x", "z")}
+            kw = {k: (read_padded(g[k], int(g.attrs.get("n", 0))) if k in g else None) for k in ("u", "y", "v", "w", "x", "z")}
             attrs = {k: v for k, v in g.attrs.items() if k not in ("dt", "n")}
             r = out[name] = Record(name, float(g.attrs["dt"]), attrs=attrs, **kw)
             if r.u is None or r.y is None or r.u.ndim != 1 or r.u.shape != r.y.shape:

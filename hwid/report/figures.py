@@ -282,6 +282,8 @@ def fold_period(y, dt: float, omega: float, start: int = 0, bins: int | None = N
     bins = int(bins or min(max(round(T / dt), 8), 2000))
     t = (np.arange(y.size) + start) * dt
     k = np.minimum((np.mod(t, T) / T * bins).astype(int), bins - 1)
+    ok = np.isfinite(y)                      # ground truth may be stored for the last periods only
+    k, y = k[ok], y[ok]
     cnt = np.bincount(k, minlength=bins)
     s = np.bincount(k, weights=y, minlength=bins)
     with np.errstate(invalid="ignore", divide="ignore"):

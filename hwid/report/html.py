@@ -195,7 +195,7 @@ def read_signals(group, keys=SIGNALS, skip=()) -> dict:
     """Like :func:`hwid.results.read_records`, reading only the datasets ``keys`` of the experiments
     not named in ``skip``."""
     from hwid.plant import Record
-    from hwid.results import ResultsError
+    from hwid.results import ResultsError, read_padded
     out = {}
     for name, g in group.items():
         if name in skip:
@@ -203,7 +203,8 @@ def read_signals(group, keys=SIGNALS, skip=()) -> dict:
         try:
             # the sine figures use y and x only: u (as long as y) is not read for them
             want = [k for k in keys if not (k == "u" and name.startswith("sine_"))]
-            kw = {k: (g[k][()] if k in want and k in g else None) for k in SIGNALS}
+            kw = {k: (read_padded(g[k], int(g.attrs.get("n", 0))) if k in want and k in g else None)
+                  for k in SIGNALS}
             attrs = {k: v for k, v in g.attrs.items() if k not in ("dt", "n")}
             if kw.get("y") is None:
                 raise KeyError("y")
@@ -548,7 +549,16 @@ def sine_views(run: RunData) -> list[SineView]:
         lead = int(rec.attrs.get("lead_in_periods", 0))
         start = int(np.ceil(lead * T / rec.dt - 1e-9))
         t_f, y_f, cnt = F.fold_period(rec.y, rec.dt, omega, start)
-        x_f = F.fold_period(rec.x, rec.dt, omega, start)[1] if rec.x is not None else None
+        x_f = None
+        if rec.x is not None:
+            # x is noise-free and T-periodic: interpolate it on phase (it may be stored for the
+            # last periods only, which leaves phase bins empty if folded)
+            idx = np.flatnonzero(np.isfinite(rec.x))
+            idx = idx[idx >= start]
+            if idx.size:
+                ph = np.mod(idx * rec.dt, T)
+                order = np.argsort(ph)
+                x_f = np.interp(t_f, ph[order], rec.x[idx][order], period=T)
         n1 = int(np.ceil(T / rec.dt))
         raw = (np.arange(n1) * rec.dt, rec.y[start:start + n1]) if rec.y.size >= start + n1 else None
         kmax = int(max(3, min((degree or 5) + 2, np.floor(np.pi / (omega * rec.dt)) - 1)))
