@@ -987,11 +987,19 @@ def table1_rows(cfg, result: NonlinearResult) -> dict:
     Xt = np.concatenate([truth.output(truth.input.steady(up.all_levels, state))[up.lead_in.size:],
                          truth.output(truth.input.steady(down.all_levels, state))[down.lead_in.size:]])
     paper = {j: (x, xh) for j, _, x, xh in PAPER_TABLE1}
+    # simultaneous (Sidak) 95 % intervals over all levels of the table: each pointwise interval
+    # widened from z_{0.975} to z_{(1 + 0.95^{1/n})/2}, so all n hold the truth together w.p. 95 %
+    from scipy import stats
+    n = len(result.X_hat)
+    widen = stats.norm.ppf(0.5 + 0.5 * 0.95 ** (1.0 / n)) / stats.norm.ppf(0.975)
     rows = []
     for j, (u, x, ci, xt) in enumerate(zip(result.levels, result.X_hat, result.ci["X_hat"], Xt), start=1):
         px, pxh = paper.get(j, (None, None))
+        half = 0.5 * (ci[1] - ci[0]) * widen
+        cj = (x - half, x + half)
         rows.append({"j": j, "U": u, "paper_X": px, "paper_X_hat": pxh, "true_X": float(xt), "X_hat": x,
-                     "ci": tuple(ci), "inside": bool(ci[0] <= xt <= ci[1])})
+                     "ci": tuple(ci), "inside": bool(ci[0] <= xt <= ci[1]),
+                     "ci_joint": cj, "inside_joint": bool(cj[0] <= xt <= cj[1])})
     true_b = {"d_plus": truth.input.d_plus, "slope_down": truth.input.slope_down, "d_minus": truth.input.d_minus}
     borders = []
     for k in ("d_plus", "slope_down", "d_minus"):
