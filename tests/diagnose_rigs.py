@@ -90,13 +90,13 @@ def input_deadzone(u, dt):
 
 def output_friction(u, dt):
     """Outside the catalogue: stick-slip friction at the output shaft -- the measured position
-    only follows the model's output once it has moved 0.08 away (a play on x)."""
+    only follows the model's output once it has moved 0.04 away (a play on x)."""
     r = _rig("output_friction")
     u = np.asarray(u, float)
     x = r.base(u, dt)
     y = np.empty_like(x)
     p = x[0]
     for i, xi in enumerate(x):
-        p = min(max(p, xi - 0.08), xi + 0.08)
+        p = min(max(p, xi - 0.04), xi + 0.04)
         y[i] = p
     return y + r.noise(u.size)

@@ -356,22 +356,24 @@ class CurvedBorders(Effect):
     """Each border of F becomes a curve: its straight line plus
     ``k (c0 + c1 P1(s) + c2 P2(s) + c3 P3(s) + c4 P4(s))``, Legendre polynomials of ``s``, the
     input scaled to [-1, 1] over the experiments' range, ``k`` the border's scale (slope x
-    half-range). ``c0, c1`` re-estimate the straight part the curve is measured against (a model's
-    straight border is the best line through a curved one, not the curve's chord)."""
+    half-range). ``c0`` (shared) and ``c1`` re-estimate the straight part the curve is measured
+    against (a model's straight border is the best line through a curved one, not the curve's
+    chord); the shift is shared by both borders so the curve never widens or narrows the play as a
+    whole (that is a different backlash, or friction elsewhere)."""
 
     def __init__(self):
         super().__init__("curved_borders", "input",
-                         tuple(f"c{k}_{side}" for side in ("up", "down") for k in range(5)),
+                         ("c0",) + tuple(f"c{k}_{side}" for side in ("up", "down") for k in range(1, 5)),
                          "the borders of F are curves instead of straight lines", interacts=("d_plus", "d_minus"))
 
     def bounds(self, sc):
-        return np.full(10, -0.4), np.full(10, 0.4)
+        return np.full(9, -0.4), np.full(9, 0.4)
 
     def starts(self, sc):
-        out = [np.zeros(10)]
+        out = [np.zeros(9)]
         for c in (0.05, -0.05):
-            z = np.zeros(10)
-            z[[2, 7]] = c
+            z = np.zeros(9)
+            z[[2, 6]] = c
             out.append(z)
         return out
 
@@ -386,13 +388,13 @@ class CurvedBorders(Effect):
         s = (u - sc[0]) / sc[1]
         th = np.asarray(theta, float)
         if F.type == "backlash":
-            up = F.ascending(u) + F.slope_up * sc[1] * self._bend(s, th[:5])
-            dn = F.descending(u) + F.slope_down * sc[1] * self._bend(s, th[5:])
+            up = F.ascending(u) + F.slope_up * sc[1] * self._bend(s, np.r_[th[0], th[1:5]])
+            dn = F.descending(u) + F.slope_down * sc[1] * self._bend(s, np.r_[th[0], th[5:]])
             v0 = float(np.clip(0.0, up[0], dn[0])) if dn[0] >= up[0] else 0.5 * (up[0] + dn[0])
             v = _play_arrays(np.ascontiguousarray(up), np.ascontiguousarray(np.maximum(dn, up)), v0)
         else:
-            up = F.ascending(u) + sc[1] / F.slope_up * self._bend(s, th[:5])
-            dn = F.descending(u) + sc[1] / F.slope_down * self._bend(s, th[5:])
+            up = F.ascending(u) + sc[1] / F.slope_up * self._bend(s, np.r_[th[0], th[1:5]])
+            dn = F.descending(u) + sc[1] / F.slope_down * self._bend(s, np.r_[th[0], th[5:]])
             v = _direction_arrays(u, np.ascontiguousarray(up), np.ascontiguousarray(dn), 0.5 * (up[0] + dn[0]))
         return sim.from_v(v)
 
