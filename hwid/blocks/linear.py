@@ -12,6 +12,7 @@ so a constant input gives ``w = G(0) v`` to machine precision from the first sam
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numba import njit
@@ -84,31 +85,42 @@ class LinearBlock:
         v = np.ascontiguousarray(v, dtype=float)
         if v.size == 0:
             return v.copy()
-        A, B, C, D = signal.tf2ss(np.asarray(self.num, float), np.asarray(self.den, float))
-        B = B[:, 0]
-        C = C[0]
-        D = float(D[0, 0]) if np.size(D) else 0.0
-        n = A.shape[0]
-        lag = int(np.floor(self.delay / dt + 1e-12))
-        frac = self.delay - lag * dt
-        if frac < 1e-12 * dt:
-            frac = 0.0
+        n, lag, frac, Phi, G1, G0, C, D = discretise(tuple(map(float, self.num)), tuple(map(float, self.den)), float(self.delay),
+                                                  float(dt))
         if n == 0:  # static gain
-            w = D * v
-        else:
-            Phi, Gfull = _int_expm(A, B, dt)
-            if frac == 0.0:
-                G1, G0 = Gfull, np.zeros(n)
-            else:
-                P1, G1 = _int_expm(A, B, dt - frac)
-                _, Gf = _int_expm(A, B, frac)
-                G0 = P1 @ Gf
-            x0 = np.linalg.solve(np.eye(n) - Phi, (G1 + G0) * v[0])
-            vd = np.concatenate([np.full(lag, v[0]), v[: v.size - lag]]) if lag else v
-            if frac == 0.0:
-                w = _ss_run(vd, Phi, G1, G0, C, D, x0, vd[0])
-            else:
-                w = _ss_run(vd, Phi, G1, G0, C, 0.0, x0, vd[0])
-                if D != 0.0:
-                    w = w + D * np.concatenate([[vd[0]], vd[:-1]])
+            return D * v
+        x0 = np.linalg.solve(np.eye(n) - Phi, (G1 + G0) * v[0])
+        vd = np.concatenate([np.full(lag, v[0]), v[: v.size - lag]]) if lag else v
+        if frac == 0.0:
+            return _ss_run(vd, Phi, G1, G0, C, D, x0, vd[0])
+        w = _ss_run(vd, Phi, G1, G0, C, 0.0, x0, vd[0])
+        if D != 0.0:
+            w = w + D * np.concatenate([[vd[0]], vd[:-1]])
         return w
+
+
+@lru_cache(maxsize=256)
+def discretise(num: tuple, den: tuple, delay: float, dt: float):
+    """The exact sampled recursion of the module docstring, cached (fits simulate one G many times).
+
+    Returns ``(n, lag, frac, Phi, Gamma1, Gamma0, C, D)``."""
+    A, B, C, D = signal.tf2ss(np.asarray(num, float), np.asarray(den, float))
+    B = np.ascontiguousarray(B[:, 0])
+    C = np.ascontiguousarray(C[0])
+    D = float(D[0, 0]) if np.size(D) else 0.0
+    n = A.shape[0]
+    lag = int(np.floor(delay / dt + 1e-12))
+    frac = delay - lag * dt
+    if frac < 1e-12 * dt:
+        frac = 0.0
+    if n == 0:
+        return n, lag, frac, None, None, None, C, D
+    A = np.ascontiguousarray(A)
+    Phi, Gfull = _int_expm(A, B, dt)
+    if frac == 0.0:
+        G1, G0 = Gfull, np.zeros(n)
+    else:
+        P1, G1 = _int_expm(A, B, dt - frac)
+        _, Gf = _int_expm(A, B, frac)
+        G0 = P1 @ Gf
+    return n, lag, frac, np.ascontiguousarray(Phi), np.ascontiguousarray(G1), np.ascontiguousarray(G0), C, D

@@ -24,11 +24,9 @@ import numpy as np
 from numba import njit
 from scipy.ndimage import uniform_filter1d
 
-from functools import lru_cache
 
-from scipy import signal
 
-from hwid.blocks.linear import LinearBlock, _ss_run
+from hwid.blocks.linear import LinearBlock
 from hwid.model import HWModel, InputNonlinearity
 
 CATALOGUE = ("input_saturation", "rate_limit", "input_deadzone", "curved_borders", "time_delay",
@@ -148,78 +146,10 @@ def smooth(r, width: int) -> np.ndarray:
     return uniform_filter1d(r, size=int(min(width, r.size)), mode="nearest")
 
 
-@njit(cache=True)
-def _expm(M):
-    """Matrix exponential of a small matrix: scaling and squaring of an 18-term Taylor series
-    (error below 1e-16 once the norm is scaled under 1/2)."""
-    n = M.shape[0]
-    nrm = np.max(np.sum(np.abs(M), axis=1))
-    s = 0
-    while nrm > 0.5:
-        nrm /= 2.0
-        s += 1
-    A = M / (2.0 ** s)
-    E = np.eye(n)
-    term = np.eye(n)
-    for k in range(1, 19):
-        term = term @ A / k
-        E = E + term
-    for _ in range(s):
-        E = E @ E
-    return E
-
-
-def _int_expm(A, B, h):
-    n = A.shape[0]
-    M = np.zeros((n + 1, n + 1))
-    M[:n, :n] = A
-    M[:n, n] = B
-    E = _expm(M * h)
-    return E[:n, :n], E[:n, n]
-
-
-@lru_cache(maxsize=256)
-def _discretise(num: tuple, den: tuple, delay: float, dt: float):
-    A, B, C, D = signal.tf2ss(np.asarray(num, float), np.asarray(den, float))
-    B = np.ascontiguousarray(B[:, 0])
-    C = np.ascontiguousarray(C[0])
-    D = float(D[0, 0]) if np.size(D) else 0.0
-    n = A.shape[0]
-    lag = int(np.floor(delay / dt + 1e-12))
-    frac = delay - lag * dt
-    if frac < 1e-12 * dt:
-        frac = 0.0
-    if n == 0:
-        return n, lag, frac, None, None, None, C, D
-    A = np.ascontiguousarray(A)
-    Phi, Gfull = _int_expm(A, B, dt)
-    if frac == 0.0:
-        G1, G0 = Gfull, np.zeros(n)
-    else:
-        P1, G1 = _int_expm(A, B, dt - frac)
-        _, Gf = _int_expm(A, B, frac)
-        G0 = P1 @ Gf
-    return n, lag, frac, np.ascontiguousarray(Phi), np.ascontiguousarray(G1), np.ascontiguousarray(G0), C, D
-
-
 def simulate_linear(G: LinearBlock, v, dt: float) -> np.ndarray:
     """:meth:`LinearBlock.simulate` (exact ZOH with fractional delay, from the equilibrium of
-    ``v[0]``) with the discretisation cached: the fits simulate the same G on many experiments."""
-    v = np.ascontiguousarray(v, dtype=float)
-    if v.size == 0:
-        return v.copy()
-    n, lag, frac, Phi, G1, G0, C, D = _discretise(tuple(float(c) for c in G.num), tuple(float(c) for c in G.den),
-                                                  float(G.delay), float(dt))
-    if n == 0:
-        return D * v
-    x0 = np.linalg.solve(np.eye(n) - Phi, (G1 + G0) * v[0])
-    vd = np.concatenate([np.full(lag, v[0]), v[: v.size - lag]]) if lag else v
-    if frac == 0.0:
-        return _ss_run(vd, Phi, G1, G0, C, D, x0, vd[0])
-    w = _ss_run(vd, Phi, G1, G0, C, 0.0, x0, vd[0])
-    if D != 0.0:
-        w = w + D * np.concatenate([[vd[0]], vd[:-1]])
-    return w
+    ``v[0]``; its discretisation is cached, so the fits can simulate one G many times)."""
+    return G.simulate(v, dt)
 
 
 # ------------------------------------------------------------------------------------ the simulator
