@@ -170,6 +170,15 @@ class ModelSim:
         self.w = [simulate_linear(model.linear, v, self.dt) for v in self.v]
         self.x = [model.output(w) for w in self.w]
 
+    def with_output(self, h) -> "ModelSim":
+        """The same model and experiments with the output nonlinearity replaced by ``h`` (the
+        intermediate ``v, w`` are shared, not recomputed)."""
+        new = object.__new__(ModelSim)
+        new.model = HWModel(self.model.input, self.model.linear, h)
+        new.dt, new.inputs, new.v, new.w = self.dt, self.inputs, self.v, self.w
+        new.x = [h(w) for w in self.w]
+        return new
+
     def from_input(self, u, F: InputNonlinearity | None = None, i: int | None = None) -> np.ndarray:
         v = (F or self.model.input).apply(u)
         return self.from_v(v)
@@ -204,6 +213,17 @@ class Effect:
     def log_params(self) -> tuple[bool, ...]:
         """Which parameters are fitted on a log scale."""
         return (False,) * len(self.params)
+
+    # h re-estimated with the effect: ``y = post(h(pre(...)))``; ``pre`` is the signal entering h
+    # (simulated with h = identity), ``post`` the output stage after h (identity by default).
+    def pre(self, sim_w: ModelSim, theta, i: int) -> np.ndarray:
+        """The signal entering h, ``sim_w`` being the model with h = identity."""
+        return self.simulate(sim_w, theta, i)
+
+    post_linear = True
+
+    def post(self, x, theta, dt: float) -> np.ndarray:
+        return x
 
 
 def _grid(*axes) -> list[np.ndarray]:
@@ -397,7 +417,16 @@ class SensorLag(Effect):
         lo, hi = self.bounds(sc)
         return _grid(np.geomspace(lo[0], hi[0], 14), [0.0, 1.0])
 
+    def pre(self, sim_w, theta, i):
+        return self._before_filter(sim_w, theta, i)
+
+    def post(self, x, theta, dt):
+        return first_order(x, float(theta[0]), dt)
+
     def simulate(self, sim, theta, i):
+        return first_order(self._before_filter(sim, theta, i), float(theta[0]), sim.dt)
+
+    def _before_filter(self, sim, theta, i):
         tau, a = float(theta[0]), float(theta[1])
         if a > 0:
             G = sim.model.linear
@@ -406,7 +435,7 @@ class SensorLag(Effect):
             x = sim.from_v(sim.v[i], LinearBlock(tuple(num), G.den, G.delay)) if num.size <= len(G.den) else sim.x[i]
         else:
             x = sim.x[i]
-        return first_order(x, tau, sim.dt)
+        return x
 
 
 class SensorSaturation(Effect):
@@ -422,6 +451,14 @@ class SensorSaturation(Effect):
     def starts(self, sc):
         lo, hi = self.bounds(sc)
         return _grid(np.linspace(lo[0], lo[1], 7)[:-1], np.linspace(hi[0], hi[1], 7)[1:])
+
+    post_linear = False
+
+    def pre(self, sim_w, theta, i):
+        return sim_w.w[i]
+
+    def post(self, x, theta, dt):
+        return np.clip(x, theta[0], theta[1])
 
     def simulate(self, sim, theta, i):
         return np.clip(sim.x[i], theta[0], theta[1])

@@ -69,6 +69,9 @@ class Design:
     settle_s: float
     omega_c: float
     seed: int
+    inside: bool = False              # keep every input inside what the model was identified on
+    w_lo: float = -np.inf             # identified range of w (stage 1), model units
+    w_hi: float = np.inf
 
     @property
     def width(self) -> float:
@@ -96,8 +99,12 @@ def bandwidth(model: HWModel, dt: float) -> float:
     return float(w[below[0]]) if below.size else float(0.5 * nyq)
 
 
-def design_from(cfg, model: HWModel) -> Design:
-    """Scales from the config's protocols and the sim-side model."""
+def design_from(cfg, model: HWModel, identified: dict | None = None) -> Design:
+    """Scales from the config's protocols and the sim-side model.
+
+    ``identified``: when the model was identified from the same plant, its ranges (``u_range`` of
+    the staircase levels, ``w_range`` of stage 1): the experiments then stay inside them, so the gap
+    is not the extrapolation of h or F beyond what was identified."""
     dt = cfg.sampling.dt
     st, sn = cfg.protocols.staircase, cfg.protocols.sine
     F = model.input
@@ -113,6 +120,9 @@ def design_from(cfg, model: HWModel) -> Design:
     else:
         amp = 0.4 * float(abs(F.ascending(hi) - F.descending(lo)))
     settle = max(settling_time(model), 20 * dt)
+    if identified:
+        w_lo, w_hi = (float(x) for x in identified.get("w_range", (-np.inf, np.inf)))
+        return Design(dt, lo, hi, amp, settle, bandwidth(model, dt), int(cfg.seed), True, w_lo, w_hi)
     return Design(dt, lo, hi, amp, settle, bandwidth(model, dt), int(cfg.seed))
 
 
@@ -205,7 +215,11 @@ def design(cfg, model: HWModel, d: Design | None = None) -> list[Experiment]:
     d = d or design_from(cfg, model)
     dt, H, W, c = d.dt, d.settle_s, d.width, d.centre
     F = model.input
-    lo, hi = _uncrossed(F, d.u_lo - 0.15 * W, d.u_hi + 0.15 * W, W)
+    # widened by 15 % to reach saturations beyond the identification range; for an identified model
+    # the range itself (its extremes still reach a saturation that matters: the identification's
+    # own levels went there)
+    widen = 0.0 if d.inside else 0.15
+    lo, hi = _uncrossed(F, d.u_lo - widen * W, d.u_hi + widen * W, W)
     root = np.random.SeedSequence(d.seed, spawn_key=(zlib.crc32(b"hwid.diagnose"),))
     rng_fit, rng_val = (np.random.default_rng(s) for s in root.spawn(2))
     exps: list[Experiment] = []
@@ -248,14 +262,25 @@ def design(cfg, model: HWModel, d: Design | None = None) -> list[Experiment]:
     A, wc = d.amplitude, d.omega_c
     plan = {"fit": [(A, 0.5 * wc), (A, 2 * wc), (A, 8 * wc), (0.5 * A, 2 * wc)],
             "validation": [(A, 0.3 * wc), (A, wc), (A, 4 * wc), (A, 16 * wc), (0.5 * A, wc), (1.25 * A, wc)]}
+    # inside: sine amplitudes (and the broadband's peaks) within the identified w range, where the
+    # pre-compensator and h were identified (the config's amplitude itself was identified in stage 2)
+    a_max = min(abs(d.w_lo), abs(d.w_hi)) if d.inside else np.inf
+    a_max = max(a_max, A) if np.isfinite(a_max) else a_max
     for role, items in plan.items():
+        seen = set()
         for amp, w in items:
+            amp = min(amp, a_max)
             w = min(w, nyq / 10)
+            if (round(amp, 12), round(w, 12)) in seen:
+                continue
+            seen.add((round(amp, 12), round(w, 12)))
             exps.append(_sine_exp(d, F, f"sine_{role}_A{amp:.3g}_w{w:.3g}", role, amp, w))
     # broadband
     for role, rng in (("fit", rng_fit), ("validation", rng_val)):
         n = _n(6 * H, dt)
         z = _multisine(d, rng, n, A / 2.5)
+        if d.inside:
+            z = np.clip(z, -a_max, a_max)
         zl = np.concatenate([_z_sweep(d, 1.05 * A), np.full(_n(1.5 * H, dt), z[0])])
         zz = np.concatenate([zl, z])
         u = _precomp(F, zz)

@@ -141,7 +141,8 @@ class GapTest:
         return {"power_ratio": self.ratio, "z": self.z, "significant": bool(self.significant)}
 
 
-def gap_test(gap_rms: float, n: int, nf: NoiseFloor, z_crit: float = 5.0, min_ratio: float = 1.1) -> GapTest:
+def gap_test(gap_rms: float, n: int, nf: NoiseFloor, z_crit: float = 5.0, min_ratio: float = 1.1,
+             model_error: float = 0.0) -> GapTest:
     """Is the gap more than noise?
 
     Under "the model is right" ``r`` is the noise, ``mean(r^2)/sigma^2`` is 1 with relative standard
@@ -149,8 +150,11 @@ def gap_test(gap_rms: float, n: int, nf: NoiseFloor, z_crit: float = 5.0, min_ra
     is declared larger than noise when the z-score exceeds ``z_crit`` (5: no false alarms over
     thousands of diagnoses) and the mean-square gap exceeds the noise's by ``min_ratio`` (10 %: an
     excess too small to matter to a simulator user is not reported, however significant).
+    ``model_error``: for an identified model, the RMS error the identification itself leaves (above
+    noise, on its own experiments); it adds to the noise in quadrature, so the test asks whether the
+    gap is more than noise and identification error together.
     """
-    ratio = gap_rms ** 2 / nf.sigma ** 2
+    ratio = gap_rms ** 2 / (nf.sigma ** 2 + model_error ** 2)
     se = np.sqrt(2 * nf.kappa / max(n, 1) + 2 * nf.kappa / max(nf.n, 1))
     z = float((ratio - 1.0) / se)
     return GapTest(float(ratio), z, bool(z > z_crit and ratio > min_ratio))

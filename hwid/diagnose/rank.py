@@ -76,10 +76,15 @@ class EffectFitter:
         Noise floor and the noise's correlation time (samples).
     max_samples : int
         The fit's residual vector is decimated to at most this many samples.
+    refit_h : bool
+        Re-estimate the coefficients of h (a polynomial of the model's degree) jointly with every
+        effect's parameters, and measure the effects against the model with h re-estimated alone
+        (``gap_refit``). For a model identified on the same plant: the identification has absorbed
+        part of any effect into h, and its own error in h is not the plant's.
     """
 
     def __init__(self, sim_fit, y_fit, m_fit, sim_val, y_val, m_val, names_val, scale, sigma, kappa,
-                 max_samples: int = 60000):
+                 max_samples: int = 60000, refit_h: bool = False):
         self.sf, self.sv = sim_fit, sim_val
         self.yf, self.yv = [np.asarray(y, float) for y in y_fit], [np.asarray(y, float) for y in y_val]
         self.mf, self.mv = [np.asarray(m, bool) for m in m_fit], [np.asarray(m, bool) for m in m_val]
@@ -92,6 +97,64 @@ class EffectFitter:
         self.n_val = sum(int(m.sum()) for m in self.mv)
         self.gap_before = rms(np.concatenate([(y - x)[m] for y, x, m in zip(self.yv, sim_val.x, self.mv)]))
         self.gap_before_fit = rms(np.concatenate([(y - x)[m] for y, x, m in zip(self.yf, sim_fit.x, self.mf)]))
+        h = sim_fit.model.output
+        self.refit_h = bool(refit_h and hasattr(h, "coefficients"))
+        self.gap_ref = self.gap_before
+        if self.refit_h:
+            from hwid.blocks.static import PolynomialH
+            ident = PolynomialH((0.0, 1.0))
+            self.sfw, self.svw = sim_fit.with_output(ident), sim_val.with_output(ident)
+            self.degree = max(len(h.coefficients) - 1, 1)
+            wf = np.concatenate([w[m] for w, m in zip(sim_fit.w, self.mf)])
+            self._w_c, self._w_r = 0.5 * (wf.max() + wf.min()), max(0.5 * (wf.max() - wf.min()), 1e-12)
+            self.baseline_val = self._refit_predict(None, None, "val")
+            self.baseline_fit = self._refit_predict(None, None, "fit")
+            self.gap_ref = rms(np.concatenate([(y - x)[m] for y, x, m in zip(self.yv, self.baseline_val, self.mv)]))
+
+    # ----------------------------------------------------------------------- h re-estimated jointly
+    def _basis(self, w) -> np.ndarray:
+        return np.polynomial.legendre.legvander((np.asarray(w, float) - self._w_c) / self._w_r, self.degree)
+
+    def _designs(self, eff, theta, which) -> list[np.ndarray]:
+        simw = self.sfw if which == "fit" else self.svw
+        out = []
+        for i in range(len(simw.inputs)):
+            Phi = self._basis(simw.w[i] if eff is None else eff.pre(simw, theta, i))
+            if eff is not None and eff.post_linear and type(eff).post is not E.Effect.post:
+                Phi = np.column_stack([eff.post(Phi[:, k], theta, simw.dt) for k in range(Phi.shape[1])])
+            out.append(Phi)
+        return out
+
+    def _h_coef(self, eff, theta, Phis) -> np.ndarray:
+        """h's coefficients (Legendre basis) by least squares on the fit data; with a non-linear
+        output stage (a clip), on the samples the current fit leaves unclipped."""
+        st = self.stride
+        A = np.concatenate([P[m][::st] for P, m in zip(Phis, self.mf)])
+        b = np.concatenate([y[m][::st] for y, m in zip(self.yf, self.mf)])
+        c = np.linalg.lstsq(A, b, rcond=None)[0]
+        if eff is not None and not eff.post_linear:
+            for _ in range(2):
+                p = A @ c
+                sel = np.abs(eff.post(p, theta, self.sf.dt) - p) <= 0.0
+                if sel.sum() <= 2 * A.shape[1]:
+                    break
+                c = np.linalg.lstsq(A[sel], b[sel], rcond=None)[0]
+        return c
+
+    def _refit_predict(self, eff, theta, which) -> list[np.ndarray]:
+        Pf = self._designs(eff, theta, "fit")
+        c = self._h_coef(eff, theta, Pf)
+        Ps = Pf if which == "fit" else self._designs(eff, theta, "val")
+        out = [P @ c for P in Ps]
+        if eff is not None and not eff.post_linear:
+            out = [eff.post(x, theta, self.sf.dt) for x in out]
+        return out
+
+    def _with_x(self, sim, xs):
+        new = object.__new__(type(sim))
+        new.__dict__.update(sim.__dict__)
+        new.x = list(xs)
+        return new
 
     # --------------------------------------------------------------------------- parameter maps
     @staticmethod
@@ -116,6 +179,9 @@ class EffectFitter:
     def _residual(self, eff, theta, which="fit"):
         sim, ys, ms = (self.sf, self.yf, self.mf) if which == "fit" else (self.sv, self.yv, self.mv)
         st = self.stride if which == "fit" else 1
+        if self.refit_h:
+            xs = self._refit_predict(eff, theta, which)
+            return np.concatenate([((y - x)[m])[::st] for y, x, m in zip(ys, xs, ms)])
         parts = []
         for i, (y, m) in enumerate(zip(ys, ms)):
             x = eff.simulate(sim, theta, i)
@@ -158,10 +224,11 @@ class EffectFitter:
         """The smoother's width by generalised cross-validation on the fit data."""
         best = None
         n = self.n_fit
+        sf = self._with_x(self.sf, self.baseline_fit) if self.refit_h else self.sf
         for th in eff.starts(self.scale):
             rss = 0.0
             for i, (y, m) in enumerate(zip(self.yf, self.mf)):
-                x = eff.simulate(self.sf, th, i, y, m)
+                x = eff.simulate(sf, th, i, y, m)
                 rss += float(np.sum((y - x)[m] ** 2))
             dof = sum(eff.dof(th, int(m.sum()), self.sf.dt) for m in self.mf)
             denom = 1 - min(self.kappa * dof / n, 0.99)
@@ -174,7 +241,10 @@ class EffectFitter:
 
     def _predict(self, eff, theta) -> list[np.ndarray]:
         if eff.disturbance:
-            return [eff.simulate(self.sv, theta, i, y, m) for i, (y, m) in enumerate(zip(self.yv, self.mv))]
+            sv = self._with_x(self.sv, self.baseline_val) if self.refit_h else self.sv
+            return [eff.simulate(sv, theta, i, y, m) for i, (y, m) in enumerate(zip(self.yv, self.mv))]
+        if self.refit_h:
+            return self._refit_predict(eff, theta, "val")
         return [eff.simulate(self.sv, theta, i) for i in range(len(self.yv))]
 
     def _score(self, eff, theta, k) -> Candidate:
@@ -186,7 +256,7 @@ class EffectFitter:
         else:
             rf = self._residual(eff, theta)
             gf = rms(rf)
-        gb = self.gap_before
+        gb = self.gap_ref
         ef = explained_fraction(gb, ga, self.sigma)
         n_eff = max(self.n_val / self.kappa, 2.0)
         score = float(n_eff * np.log(max(gb * gb, 1e-300) / max(ga * ga, 1e-300)) - k * np.log(n_eff))
