@@ -8,6 +8,8 @@ plant as an hwid model. ``function(u, dt) -> y`` as ``plant.kind: external`` exp
 """
 from __future__ import annotations
 
+import zlib
+
 import numpy as np
 from scipy import signal
 
@@ -49,7 +51,7 @@ _RIGS: dict[str, _Rig] = {}
 
 def _rig(name: str) -> _Rig:
     if name not in _RIGS:
-        _RIGS[name] = _Rig(abs(hash(name)) % 2 ** 31)
+        _RIGS[name] = _Rig(zlib.crc32(name.encode()))
     return _RIGS[name]
 
 

@@ -120,6 +120,10 @@ def design_from(cfg, model: HWModel, identified: dict | None = None) -> Design:
     else:
         amp = 0.4 * float(abs(F.ascending(hi) - F.descending(lo)))
     settle = max(settling_time(model), 20 * dt)
+    if st is not None:
+        # the staircase's hold is the user's own statement of how long the plant takes to settle;
+        # a model pole much slower than that (an identified G can put one near 0) is not believed
+        settle = min(settle, 2.0 * float(st.hold))
     if identified:
         w_lo, w_hi = (float(x) for x in identified.get("w_range", (-np.inf, np.inf)))
         return Design(dt, lo, hi, amp, settle, bandwidth(model, dt), int(cfg.seed), True, w_lo, w_hi)

@@ -1,0 +1,64 @@
+"""``hwid diagnose`` without ``--model``: hwid identifies the model from the same rig (stage 1,
+stage 2, parametric G) and then diagnoses it, against the known truth of ``tests/diagnose_rigs.py``.
+
+Short protocols (dt = 0.04 s, a fast G with a 4 s settling time, two sine periods) keep the whole
+file under a minute. Tolerances: the identified model carries its own error, so the rate limit is
+asked to within 10 % (the plant-side rate, not a fitted stand-in), and the gap after adding it to
+within 1.5x the noise floor and identification error together.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+from hwid import config
+from hwid.diagnose import diagnose
+
+import diagnose_rigs as R
+
+DT = 0.04
+
+
+def _run(tmp_path_factory, driver):
+    tmp = tmp_path_factory.mktemp(f"id_{driver}")
+    lv = [-1.0, -0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 0.75, 1.0]
+    d = {"name": driver, "seed": 7, "sampling": {"dt": DT},
+         "plant": {"kind": "external", "callable": f"diagnose_rigs:{driver}"},
+         "protocols": {"staircase": {"levels_up": lv, "levels_down": lv[::-1], "hold": 6.0},
+                       "sine": {"amplitude": 0.6, "frequencies": [0.3, 1.0, 3.0], "periods": 2}}}
+    p = tmp / "cfg.yaml"
+    p.write_text(yaml.safe_dump(d))
+    return diagnose(config.load(p), tmp / "out", model=None, echo=lambda *a: None)
+
+
+@pytest.fixture(scope="module")
+def rate(tmp_path_factory):
+    return _run(tmp_path_factory, "rate_limit")
+
+
+def test_identified_rate_limit_named_with_its_rate(rate):
+    s = rate
+    assert s["model"]["source"] == "identified"
+    assert s["cost"]["plant_calls_identification"] > 0
+    assert s["verdict"]["effect"] == "rate_limit" and s["verdict"]["block"] == "input"
+    top = s["candidates"][0]
+    assert top["effect"] == "rate_limit"
+    assert abs(top["params"]["rate"] / R.TRUTH["rate_limit"]["rate"] - 1) < 0.1
+    assert s["gap_before"] > 3 * s["noise_floor"]
+    floor = np.hypot(s["noise_floor"], s["test"]["identification_error"]["excess"])
+    assert s["gap_after"] < 1.5 * floor
+    # the noise floor from the repeats is the rig's
+    assert abs(s["noise_floor"] - R.NOISE) < 0.15 * R.NOISE
+
+
+def test_identified_experiments_stay_inside_the_identified_range(rate):
+    lo, hi = rate["design"]["u_range"]
+    assert (lo, hi) == (-1.0, 1.0)
+    assert "extremes" not in rate["where"]["regions"]
+
+
+def test_identified_plain_plant_is_none(tmp_path_factory):
+    s = _run(tmp_path_factory, "plain")
+    assert s["verdict"] == {"effect": "none", "block": "none", "explained_fraction": 0.0}
+    assert not s["test"]["significant"]
