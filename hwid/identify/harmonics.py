@@ -21,9 +21,11 @@ Convention: the complex coefficient of harmonic ``k`` is ``C_k = b_k + j a_k`` f
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from math import comb
 
 import numpy as np
+from numba import njit
 from scipy import stats
 
 
@@ -40,6 +42,12 @@ def sine_power_matrix(degree: int) -> np.ndarray:
     degree : int
         Highest power ``p``; the matrix is ``(p + 1) x (p + 1)`` (harmonics ``0..p``).
     """
+    return _sine_power_matrix(int(degree)).copy()
+
+
+@lru_cache(maxsize=64)
+def _sine_power_matrix(degree: int) -> np.ndarray:
+    """:func:`sine_power_matrix`, computed once per degree (read only: the cached array is shared)."""
     p = int(degree)
     if p < 0:
         raise ValueError("degree must be >= 0")
@@ -53,6 +61,7 @@ def sine_power_matrix(degree: int) -> np.ndarray:
                 M[i, 0] += e.real
             elif n > 0:
                 M[i, n] += 2j * e             # e_n e^{jna} + conj(e_n) e^{-jna} = Im(2j e_n e^{jna})
+    M.flags.writeable = False
     return M
 
 
@@ -74,7 +83,7 @@ class HarmonicModel:
         if not c or not np.all(np.isfinite(c)):
             raise ValueError("h_coefficients must be a non-empty sequence of finite numbers")
         object.__setattr__(self, "h_coefficients", c)
-        object.__setattr__(self, "_M", sine_power_matrix(len(c) - 1))
+        object.__setattr__(self, "_M", _sine_power_matrix(len(c) - 1))      # shared, read only
 
     @property
     def degree(self) -> int:
@@ -158,20 +167,129 @@ class PeriodSums:
 
 
 def _design(t: np.ndarray, omega: float, k_max: int) -> np.ndarray:
-    e1 = np.exp(1j * omega * t)
+    """Regressors ``[1, cos(k omega t), sin(k omega t)]`` (eq. 23's model) as a dense matrix (tests,
+    small records; :func:`period_sums` never forms it)."""
+    t = np.asarray(t, float)
     X = np.empty((t.size, 2 * k_max + 1))
     X[:, 0] = 1.0
-    e = np.ones_like(e1)
     for k in range(1, k_max + 1):
-        # direct evaluation every 8 harmonics keeps the recursion's rounding error negligible
-        e = e * e1 if k % 8 else np.exp(1j * k * omega * t)
-        X[:, k] = e.real
-        X[:, k_max + k] = e.imag
+        X[:, k] = np.cos(k * omega * t)
+        X[:, k_max + k] = np.sin(k * omega * t)
     return X
 
 
-def period_sums(y, dt: float, omega: float, k_max: int, chunk: int = 1 << 17) -> PeriodSums:
-    """Accumulate the harmonic normal equations per whole period of ``y`` (memory ~ chunk x 2K+1).
+@njit(cache=True, fastmath={"reassoc", "contract"})
+def _harmonic_sums(y, bounds, omega, dt, k_max, block, offset=0):
+    """``sum y_n cos(k omega t_n)``, ``sum y_n sin(k omega t_n)`` (k = 1..K), ``sum y_n`` and
+    ``sum y_n^2`` over each period ``[bounds[p], bounds[p + 1])`` in one pass over ``y``, with
+    ``t_n = (n + offset) dt``.
+
+    Rotation in blocks: ``e^{jk omega t_{n0 + m}} = e^{jk omega t_{n0}} e^{jk omega m dt}``; the
+    second factor is one table of ``K x block`` values for the whole record, the first one value per
+    block and harmonic, so every sample costs 2K multiply-adds (vectorised: the sums may be
+    reassociated) and no exp, and no rounding error accumulates along the record (both factors are
+    evaluated directly)."""
+    P = bounds.shape[0] - 1
+    K = k_max
+    tc = np.empty((K, block))
+    ts = np.empty((K, block))
+    for k in range(K):
+        for m in range(block):
+            a = (k + 1) * omega * (m * dt)
+            tc[k, m] = np.cos(a)
+            ts[k, m] = np.sin(a)
+    C = np.zeros((P, K))
+    S = np.zeros((P, K))
+    s1 = np.zeros(P)
+    s2 = np.zeros(P)
+    for p in range(P):
+        for n0 in range(bounds[p], bounds[p + 1], block):
+            L = min(block, bounds[p + 1] - n0)
+            yb = y[n0:n0 + L]
+            t1 = 0.0
+            t2 = 0.0
+            for m in range(L):
+                t1 += yb[m]
+                t2 += yb[m] * yb[m]
+            for k in range(K):
+                ac = 0.0
+                asn = 0.0
+                tck = tc[k]
+                tsk = ts[k]
+                for m in range(L):
+                    ac += yb[m] * tck[m]
+                    asn += yb[m] * tsk[m]
+                a = (k + 1) * omega * ((n0 + offset) * dt)
+                c, s = np.cos(a), np.sin(a)
+                C[p, k] += c * ac - s * asn
+                S[p, k] += s * ac + c * asn
+            s1[p] += t1
+            s2[p] += t2
+    return C, S, s1, s2
+
+
+def harmonic_gram(bounds: np.ndarray, omega: float, dt: float, k_max: int) -> np.ndarray:
+    """``X^T X`` of the regressors ``[1, cos(k omega t), sin(k omega t)]`` over each period
+    ``[bounds[p], bounds[p + 1])`` of samples ``t_n = n dt``, in closed form, shape ``(P, m, m)``.
+
+    It does not depend on the data: with ``S_q = sum_n e^{jq omega t_n}`` (a geometric sum,
+    ``e^{jq omega dt (a + b - 1)/2} sin(q omega dt N / 2) / sin(q omega dt / 2)`` over ``N = b - a``
+    samples), ``sum cos k cos l = Re(S_{k-l} + S_{k+l}) / 2``, ``sum sin k sin l = Re(S_{k-l} -
+    S_{k+l}) / 2`` and ``sum cos k sin l = Im(S_{k+l} + S_{l-k}) / 2``."""
+    bounds = np.asarray(bounds, np.int64)
+    a, b = bounds[:-1].astype(float), bounds[1:].astype(float)
+    N = b - a
+    K = int(k_max)
+    q = np.arange(1, 2 * K + 1, dtype=float)
+    half = 0.5 * q * omega * dt                                              # (2K,)
+    ratio = np.sin(half[None, :] * N[:, None]) / np.sin(half)[None, :]      # (P, 2K)
+    ang = q[None, :] * omega * (0.5 * (a + b - 1.0) * dt)[:, None]
+    Sq = np.empty((N.size, 2 * K + 1), complex)
+    Sq[:, 0] = N
+    Sq[:, 1:] = ratio * np.exp(1j * ang)
+    k = np.arange(1, K + 1)
+    d = np.abs(k[:, None] - k[None, :])                                      # |k - l|
+    s = k[:, None] + k[None, :]                                              # k + l
+    sign = np.sign(k[None, :] - k[:, None])                                  # sign(l - k)
+    m = 2 * K + 1
+    G = np.empty((N.size, m, m))
+    G[:, 0, 0] = N
+    G[:, 0, 1:K + 1] = G[:, 1:K + 1, 0] = Sq[:, 1:K + 1].real
+    G[:, 0, K + 1:] = G[:, K + 1:, 0] = Sq[:, 1:K + 1].imag
+    G[:, 1:K + 1, 1:K + 1] = 0.5 * (Sq[:, d].real + Sq[:, s].real)
+    G[:, K + 1:, K + 1:] = 0.5 * (Sq[:, d].real - Sq[:, s].real)
+    cs = 0.5 * (Sq[:, s].imag + sign * Sq[:, d].imag)                       # rows cos k, columns sin l
+    G[:, 1:K + 1, K + 1:] = cs
+    G[:, K + 1:, 1:K + 1] = np.swapaxes(cs, 1, 2)
+    return G
+
+
+def span_projector(start: int, stop: int, omega: float, dt: float, k_max: int):
+    """Least-squares harmonic coefficients over samples ``start..stop-1`` (``t_n = n dt``) as a
+    function of the data: returns ``fit(v) -> [dc, a_1..a_K, b_1..b_K]`` for ``v`` of length
+    ``stop - start``, equal to ``pinv(X) @ v`` but without forming ``X`` (the Gram matrix is
+    factorised once, ``X^T v`` is one pass of :func:`_harmonic_sums`)."""
+    from scipy.linalg import cho_factor, cho_solve
+    K = int(k_max)
+    G = harmonic_gram(np.array([start, stop]), float(omega), float(dt), K)[0]
+    cf = cho_factor(G)
+    bounds = np.array([0, stop - start], np.int64)
+
+    def fit(v):
+        v = np.ascontiguousarray(v, dtype=float)
+        if v.size != stop - start:
+            raise ValueError(f"expected {stop - start} samples, got {v.size}")
+        C, S, s1, _ = _harmonic_sums(v, bounds, float(omega), float(dt), K, 512, int(start))
+        return cho_solve(cf, np.concatenate([s1, C[0], S[0]]))
+
+    return fit
+
+
+def period_sums(y, dt: float, omega: float, k_max: int, block: int = 512) -> PeriodSums:
+    """Accumulate the harmonic normal equations per whole period of ``y`` (eqs. 23-26, LS form).
+
+    ``X^T y`` and ``y^T y`` come from one pass over ``y`` (:func:`_harmonic_sums`, no design
+    matrix is formed), ``X^T X`` in closed form (:func:`harmonic_gram`).
 
     Parameters
     ----------
@@ -183,10 +301,10 @@ def period_sums(y, dt: float, omega: float, k_max: int, chunk: int = 1 << 17) ->
         Fundamental frequency of the input, rad/s.
     k_max : int
         Highest harmonic fitted (capped by the caller below Nyquist).
-    chunk : int
-        Samples processed at a time.
+    block : int
+        Samples per block of the rotation (size of the kernel's table).
     """
-    y = np.asarray(y, float)
+    y = np.ascontiguousarray(y, dtype=float)
     T = 2 * np.pi / omega
     n_tot = y.size
     P = int(np.floor(n_tot * dt / T + 1e-9))
@@ -195,20 +313,11 @@ def period_sums(y, dt: float, omega: float, k_max: int, chunk: int = 1 << 17) ->
     # first sample of each period: ceil(p T / dt)
     bounds = np.ceil(np.arange(P + 1) * T / dt - 1e-9).astype(np.int64)
     bounds[-1] = min(bounds[-1], n_tot)
-    m = 2 * k_max + 1
-    XtX = np.zeros((P, m, m))
-    Xty = np.zeros((P, m))
-    yty = np.zeros(P)
-    for p in range(P):
-        a, b = bounds[p], bounds[p + 1]
-        for s in range(a, b, chunk):
-            e = min(s + chunk, b)
-            X = _design(np.arange(s, e) * dt, omega, k_max)
-            ys = y[s:e]
-            XtX[p] += X.T @ X
-            Xty[p] += X.T @ ys
-            yty[p] += ys @ ys
-    return PeriodSums(float(omega), float(dt), int(k_max), XtX, Xty, yty, np.diff(bounds))
+    k_max = int(k_max)
+    C, S, s1, s2 = _harmonic_sums(y, bounds, float(omega), float(dt), k_max, int(block))
+    Xty = np.concatenate([s1[:, None], C, S], axis=1)
+    XtX = harmonic_gram(bounds, float(omega), float(dt), k_max)
+    return PeriodSums(float(omega), float(dt), k_max, XtX, Xty, s2, np.diff(bounds))
 
 
 def _complex(theta: np.ndarray, k_max: int) -> np.ndarray:

@@ -27,14 +27,17 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import Any, Optional, Protocol, Sequence
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import stats
 
 from hwid import HwidError
-from hwid.identify.harmonics import HarmonicFit, HarmonicModel, fit_harmonics, period_sums
+from hwid.blocks.static import polyval
+from hwid.identify.harmonics import HarmonicFit, HarmonicModel, fit_harmonics, period_sums, span_projector
+from hwid.identify.lm import lm
 
 
 class ExtrapolationWarning(UserWarning):
@@ -224,7 +227,8 @@ class LinearEstimator:
         u = getattr(record, "u", None)
         if u is not None and nonlinear is not None:
             v = np.asarray(nonlinear.input_nonlinearity().apply(np.asarray(u, float)), float)
-            if not np.allclose(v, sine.z[: v.size], rtol=0, atol=1e-12 * max(1.0, sine.amplitude)):
+            # = not allclose(v, z, rtol=0, atol), in one pass over the record
+            if not np.all(np.abs(v - sine.z[: v.size]) <= 1e-12 * max(1.0, sine.amplitude)):
                 S = period_sums(v, record.dt, sine.omega, k_dist)
                 used = slice(hf.first_period, hf.first_period + hf.periods)
                 th = np.linalg.solve(S.XtX[used].sum(0), S.Xty[used].sum(0))
@@ -309,10 +313,9 @@ class LinearEstimator:
         a0 = max(0, a - (b - a))
         v = np.asarray(nonlinear.input_nonlinearity().apply(np.asarray(rec.u[a0:b], float)), float)[a - a0:]
         K = max(1, min(15, self._k_cap))
-        if getattr(self, "_tail_pinv", None) is None or self._tail_pinv.shape[1] != v.size:
-            from hwid.identify.harmonics import _design
-            self._tail_pinv = np.linalg.pinv(_design(np.arange(a, b) * dt, sine.omega, K))
-        th = self._tail_pinv @ v
+        if getattr(self, "_tail_fit", None) is None or self._tail_fit[0] != (a, b, K):
+            self._tail_fit = ((a, b, K), span_projector(a, b, sine.omega, dt, K))
+        th = self._tail_fit[1](v)
         V = np.concatenate([[th[0]], th[K + 1:] + 1j * th[1:K + 1]])
         kappa = complex(V[1] / sine.amplitude)
         if self.hold_correction:
@@ -326,8 +329,9 @@ class LinearEstimator:
         rho, th_k = U * abs(kappa), float(np.angle(kappa))
         W = self._distortion(V, g_model) if V is not None else None
 
-        def cost(g, phi):
-            return float(np.sum(np.abs(c - hm.D(rho * g, ks) * np.exp(-1j * ks * (phi - th_k))) ** 2 / var))
+        def cost(g, phi, D=None):
+            D = hm.D(rho * g, ks) if D is None else D          # D: hm.D(rho * g, ks), computed by the caller
+            return float(np.sum(np.abs(c - D * np.exp(-1j * ks * (phi - th_k))) ** 2 / var))
 
         est = {"nls": self._nls(hm, ks, c, var, rho, th_k, W, x0), "paper": None}
         try:
@@ -493,13 +497,22 @@ class LinearEstimator:
             x0 = np.array([g_grid[i], phis[j] + th_k])
         x0 = np.asarray(x0, float)
 
+        dist = _Distorted(hm, W, ks) if W is not None else None
+        last: dict = {}
+
         def model(x):
-            if W is None:
-                e = np.exp(-1j * ks * (x[1] - th_k))
-                C = hm.D(rho * x[0], ks) * e
-                return C, rho * hm.dD(rho * x[0], ks) * e, -1j * ks * C
-            C, dr, dp = _numeric_harmonics(hm, rho * x[0], x[1] - th_k, W, ks)
-            return C, rho * dr, dp
+            # MINPACK asks for the residuals and then the Jacobian at the same point: computed once
+            key = (float(x[0]), float(x[1]))
+            if last.get("key") != key:
+                if dist is None:
+                    e = np.exp(-1j * ks * (x[1] - th_k))
+                    C = hm.D(rho * x[0], ks) * e
+                    out = C, rho * hm.dD(rho * x[0], ks) * e, -1j * ks * C
+                else:
+                    C, dr, dp = dist(rho * x[0], x[1] - th_k)
+                    out = C, rho * dr, dp
+                last["key"], last["out"] = key, out
+            return last["out"]
 
         def res(x):
             r = (c - model(x)[0]) / sd
@@ -510,18 +523,18 @@ class LinearEstimator:
             dg, dp = -dg / sd, -dp / sd
             return np.column_stack([np.concatenate([dg.real, dg.imag]), np.concatenate([dp.real, dp.imag])])
 
-        sol = optimize.least_squares(res, x0, jac=jac, method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14)
-        g, phi = sol.x
+        sol_x, sol_cost, _ = lm(res, jac, x0, xtol=1e-14, ftol=1e-14, gtol=1e-14)
+        g, phi = sol_x
         if g < 0:   # the odd part of h is invariant under (g, phi) -> (-g, phi + pi); report g > 0
             g, phi = -g, phi + np.pi
-            sol = optimize.least_squares(res, np.array([g, phi]), jac=jac, method="lm")
-            g, phi = sol.x
+            sol_x, sol_cost, _ = lm(res, jac, np.array([g, phi]))
+            g, phi = sol_x
         Jm = jac(np.array([g, phi]))
         try:
             cov = np.linalg.inv(Jm.T @ Jm)
         except np.linalg.LinAlgError:
             cov = np.full((2, 2), np.inf)
-        return {"gain": float(g), "phase": float(phi), "cov": cov, "cost": float(sol.cost * 2),
+        return {"gain": float(g), "phase": float(phi), "cov": cov, "cost": float(sol_cost * 2),
                 "dof": int(2 * ks.size - 2)}
 
     def _paper(self, hm, ks, c, var, rho, th_k, cost, sig) -> dict:
@@ -552,9 +565,10 @@ class LinearEstimator:
         for r in roots:
             g = r / rho
             Dk = hm.D(r, [k])[0]
+            Dg = hm.D(rho * g, ks)
             for m in range(k):
                 phi = th_k + (np.angle(Dk) - np.angle(ck) + 2 * np.pi * m) / k
-                cc = cost(g, phi)
+                cc = cost(g, phi, Dg)
                 if best is None or cc < best[0]:
                     best = (cc, g, phi, r)
         _, g, phi, r = best
@@ -565,27 +579,52 @@ class LinearEstimator:
                 "roots": [r_ / rho for r_ in roots]}
 
 
+class _Distorted:
+    """The harmonic model of eq. (20) with a distorted input, evaluated numerically: the harmonics
+    ``C_k`` of ``h(r sin(theta - phi) + d(theta))`` and their derivatives in ``r`` and ``phi``, by
+    the FFT of one period of ``M`` points (``d = W_0 + sum_{k>=2} Im(W_k e^{j k theta})``: the
+    input distortion). The grid, ``d`` and ``h'`` are prepared once; each call costs two
+    polynomial evaluations and one real FFT of three rows (the same operations, value for value, as
+    a fresh evaluation)."""
+
+    def __init__(self, hm: HarmonicModel, W, ks, M: int | None = None):
+        W = np.asarray(W, complex)
+        self.ks = np.asarray(ks)
+        if M is None:
+            M = 1 << int(np.ceil(np.log2(8 * max(hm.degree, 1) * max(len(W), int(self.ks.max()) + 1))))
+        self.M = M
+        self.th = th = 2 * np.pi * np.arange(M) / M
+        d = np.full(M, float(np.real(W[0])))
+        E = _rotations(M, len(W))
+        for k in range(2, len(W)):
+            d += np.imag(W[k] * E[k])
+        self.d = d
+        self.c = np.asarray(hm.h_coefficients, float)
+        self.dc = np.polynomial.polynomial.polyder(self.c)
+
+    def __call__(self, r: float, phi: float):
+        sn, cs = np.sin(self.th - phi), np.cos(self.th - phi)
+        w = r * sn + self.d
+        x = polyval(w, self.c)
+        hp = polyval(w, self.dc)
+        F = np.fft.rfft(np.stack([x, hp * sn, -hp * r * cs]), axis=1)[:, self.ks] / self.M
+        C = -2 * F.imag + 2j * F.real
+        return C[0], C[1], C[2]
+
+
+@lru_cache(maxsize=16)
+def _rotations(M: int, K: int) -> np.ndarray:
+    """``e^{j k theta}`` on the grid ``theta = 2 pi m / M``, rows ``k = 0..K-1`` (read only)."""
+    th = 2 * np.pi * np.arange(M) / M
+    E = np.array([np.exp(1j * k * th) for k in range(K)])
+    E.flags.writeable = False
+    return E
+
+
 def _numeric_harmonics(hm: HarmonicModel, r: float, phi: float, W, ks, M: int | None = None):
     """Harmonics ``C_k`` of ``h(r sin(theta - phi) + d(theta))`` and their derivatives in ``r`` and ``phi``,
     by the FFT of one period (``d = W_0 + sum_{k>=2} Im(W_k e^{j k theta})``: the input distortion)."""
-    ks = np.asarray(ks)
-    if M is None:
-        M = 1 << int(np.ceil(np.log2(8 * max(hm.degree, 1) * max(len(W), int(ks.max()) + 1))))
-    th = 2 * np.pi * np.arange(M) / M
-    d = np.full(M, float(np.real(W[0])))
-    for k in range(2, len(W)):
-        d += np.imag(W[k] * np.exp(1j * k * th))
-    sn, cs = np.sin(th - phi), np.cos(th - phi)
-    w = r * sn + d
-    c = np.asarray(hm.h_coefficients)
-    x = np.polynomial.polynomial.polyval(w, c)
-    hp = np.polynomial.polynomial.polyval(w, np.polynomial.polynomial.polyder(c))
-
-    def coef(sig):
-        F = np.fft.rfft(sig)[ks] / M
-        return -2 * F.imag + 2j * F.real
-
-    return coef(x), coef(hp * sn), coef(-hp * r * cs)
+    return _Distorted(hm, W, ks, M)(r, phi)
 
 
 # -------------------------------------------------------------------------------------------- results

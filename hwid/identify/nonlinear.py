@@ -53,10 +53,12 @@ from pathlib import Path
 from typing import Any, Optional
 
 import numpy as np
+from numba import njit
 from numpy.polynomial import Polynomial
-from scipy import optimize, stats
+from scipy import stats
 
 from hwid import HwidError
+from hwid.identify.lm import lm
 from hwid.identify.steady import SteadyLevels, steady_levels
 from hwid.model import InputNonlinearity
 
@@ -286,8 +288,25 @@ class _TooFew(Exception):
 
 def _polyfit(u, x, se, p: int) -> tuple[np.ndarray, float]:
     """Weighted LS polynomial of degree ``p`` in numpy's domain-scaled basis; power coefficients."""
-    q = _WPoly(u, x, se, p)
+    q = _wpoly(u, x, se, p)
     return q.coef, q.chi2
+
+
+_WPOLY_CACHE: dict = {}
+
+
+def _wpoly(u, x, se, p: int) -> "_WPoly":
+    """:class:`_WPoly`, remembered for the last few hundred distinct inputs: the search over the
+    horizontal paths and the roots of ``q`` (:func:`_route_with_paths`) fits the same border points
+    many times over."""
+    u, x, se = (np.ascontiguousarray(a, dtype=float) for a in (u, x, se))
+    key = (u.tobytes(), x.tobytes(), se.tobytes(), int(p))
+    q = _WPOLY_CACHE.get(key)
+    if q is None:
+        if len(_WPOLY_CACHE) >= 512:
+            _WPOLY_CACHE.clear()
+        q = _WPOLY_CACHE[key] = _WPoly(u, x, se, p)
+    return q
 
 
 class _WPoly:
@@ -359,17 +378,44 @@ def _desc_index(kind: str, j_d: int, n_down: int) -> np.ndarray:
     return np.arange(j_d if kind == "backlash" else 0, n_down)
 
 
+@njit(cache=True)
+def _border_model(t0, t1, u, x, se, hc, dhc, want_jac):
+    """Residuals ``(x - h_bar(e^t0 (u - t1))) / se`` of the descending border (eq. 14) and, if
+    ``want_jac``, their Jacobian in ``(t0, t1)`` (Horner in polyval's order)."""
+    s = np.exp(min(t0, 50.0))
+    n = u.shape[0]
+    r = np.empty(n)
+    J = np.zeros((n, 2))
+    for j in range(n):
+        w = s * (u[j] - t1)
+        h = hc[hc.shape[0] - 1]
+        for i in range(hc.shape[0] - 2, -1, -1):
+            h = hc[i] + h * w
+        r[j] = (x[j] - h) / se[j]
+        if want_jac:
+            d = dhc[dhc.shape[0] - 1]
+            for i in range(dhc.shape[0] - 2, -1, -1):
+                d = dhc[i] + d * w
+            d = d / se[j]
+            J[j, 0] = -d * w if t0 < 50.0 else 0.0
+            J[j, 1] = d * s
+    return r, J
+
+
 def _descending(hc: np.ndarray, p: int, u, x, se, b_ref: Optional[float] = None) -> tuple[float, float, str]:
     """``(sigma, b)`` of ``r(u) = h_bar(sigma (u - b))`` on the descending border (eq. 14).
 
     Closed form: ``sigma = (r_p / c_p)^(1/p)``; ``b`` among the real roots of ``r`` and the value
     from the next coefficient, the one that fits best. If the closed form is impossible (too few
-    points or a leading-coefficient ratio <= 0), a 2-parameter least-squares fit."""
-    h = Polynomial(hc)
+    points or a leading-coefficient ratio <= 0), a 2-parameter least-squares fit (Levenberg-Marquardt
+    with the analytic Jacobian of eq. 14's border model, from the two best points of a grid in b)."""
+    hp = np.polynomial.polynomial.polyval
+    hc = np.ascontiguousarray(hc, dtype=float)
 
     def sse(sig, b):
-        r = (x - h(sig * (u - b))) / se
-        return float(r @ r)
+        """Weighted SSE of ``h_bar(sig (u - b))`` for every ``b`` of an array at once."""
+        r = (x - hp(sig * (u - np.asarray(b, float)[..., None]), hc)) / se
+        return np.einsum("...i,...i->...", r, r)
 
     span = float(np.ptp(u)) if u.size > 1 else 1.0
     lo, hi = float(u.min()) - 2 * span - 1.0, float(u.max()) + 2 * span + 1.0
@@ -383,18 +429,33 @@ def _descending(hc: np.ndarray, p: int, u, x, se, b_ref: Optional[float] = None)
                 # r_{p-1} = c_p sig^p (-p b) + c_{p-1} sig^{p-1}
                 cands.append((hc[p - 1] * sig ** (p - 1) - rc[p - 1]) / (p * hc[p] * sig ** p))
             if cands:
-                b = min(cands, key=(lambda bb: sse(sig, bb)) if b_ref is None else (lambda bb: abs(bb - b_ref)))
+                key = sse(sig, cands) if b_ref is None else np.abs(np.asarray(cands) - b_ref)
+                b = cands[int(np.argmin(key))]
                 return float(sig), float(b), "closed form"
     if u.size < 2:
         raise _TooFew("descending")
     grid = np.linspace(lo, hi, 61)
-    best = sorted(grid, key=lambda bb: sse(1.0, bb))[:2]
+    best = grid[np.argsort(sse(1.0, grid), kind="stable")[:2]]
+    dhc = np.ascontiguousarray(np.polynomial.polynomial.polyder(hc), dtype=float)
+    u, x, se = (np.ascontiguousarray(a, dtype=float) for a in (u, x, se))
+
+    last: list = [None, None]
+
+    def res(t):
+        # MINPACK asks for the Jacobian where it last evaluated the residuals: both in one call
+        last[0] = (float(t[0]), float(t[1]))
+        r, last[1] = _border_model(t[0], t[1], u, x, se, hc, dhc, True)
+        return r
+
+    def jac(t):
+        if last[0] == (float(t[0]), float(t[1])):
+            return last[1]
+        return _border_model(t[0], t[1], u, x, se, hc, dhc, True)[1]
+
     out = []
-    hp = np.polynomial.polynomial.polyval
     for b0 in best:
-        r = optimize.least_squares(lambda t: (x - hp(math.exp(min(t[0], 50.0)) * (u - t[1]), hc)) / se, [0.0, b0],
-                                   method="lm" if u.size >= 2 else "trf", max_nfev=300)
-        out.append((2 * r.cost, float(np.exp(r.x[0])), float(r.x[1])))
+        z, cost, _ = lm(res, jac, [0.0, float(b0)], max_nfev=300)
+        out.append((2 * cost, float(np.exp(z[0])), float(z[1])))
     _, sig, b = min(out)
     return sig, b, "least squares (closed form not available)"
 
@@ -419,7 +480,7 @@ def _paper_route(kind: str, p: int, data: _Data, j_a: int, j_d: int,
     if ia.size < p + 1:
         raise _TooFew("ascending")
     u, x, se = data.U[ia], data.X[ia], data.se[ia]
-    qf = _WPoly(u, x, se, p)
+    qf = _wpoly(u, x, se, p)
     qc = qf.coef
     U = data.U
     span = float(np.ptp(U))
@@ -472,6 +533,19 @@ def _route_with_paths(kind: str, p: int, data: _Data, j_a: int, j_d: int):
     if kind != "backlash":
         return _paper_route(kind, p, data, j_a, j_d), j_a, j_d
     n_up, n_dn = data.n_up, data.down.size
+    memo: dict[tuple[int, int], Any] = {}
+
+    def route(ja, jd):
+        # the descending search starts from the (j_a, j_d) the ascending one has already tried
+        if (ja, jd) not in memo:
+            try:
+                memo[ja, jd] = _paper_route(kind, p, data, ja, jd)
+            except _TooFew as err:
+                memo[ja, jd] = err
+        got = memo[ja, jd]
+        if isinstance(got, _TooFew):
+            raise got
+        return got
 
     def by_distance(j, lo, hi):
         return sorted(range(lo, hi + 1), key=lambda k: (abs(k - j), k < j))
@@ -499,12 +573,12 @@ def _route_with_paths(kind: str, p: int, data: _Data, j_a: int, j_d: int):
         return first or best
 
     got = first_consistent([j_a] + [j for j in by_distance(j_a, 1, n_up - 2) if j != j_a],
-                           lambda j: _paper_route(kind, p, data, j, j_d), 0)
+                           lambda j: route(j, j_d), 0)
     if got is None:
         raise _TooFew("ascending")
     ja = got[0]
     got = first_consistent([j_d] + [j for j in by_distance(j_d, 0, n_dn - 2) if j != j_d],
-                           lambda j: _paper_route(kind, p, data, ja, j), 1)
+                           lambda j: route(ja, j), 1)
     if got is None:
         raise _TooFew("descending")
     return got[1], ja, got[0]
@@ -512,30 +586,119 @@ def _route_with_paths(kind: str, p: int, data: _Data, j_a: int, j_d: int):
 
 # ------------------------------------------------------------------------------ joint NLS
 
+@njit(cache=True)
+def _steady_grad(backlash, levels, lead, dp, sd, dm, v, dv, at):
+    """Steady ``V_j = F_bar[U_j]`` and ``dV_j / d(d^+, S^d, d^-)`` along one level sequence, written
+    from row ``at`` of ``v``, ``dv`` on (levels from ``lead`` on).
+
+    The recursion and its branch decisions are those of :func:`hwid.blocks.backlash.static_play`
+    (from ``_NEG``) and :func:`~hwid.blocks.backlash.static_direction_map` (from 0) with
+    ``slope_up = 1``: a level on the ascending border ``u - d^+`` (branch ``u + d^+``) depends on
+    ``d^+`` only, one on the descending border ``S^d (u - d^-)`` (branch ``u / S^d + d^-``) on ``S^d``
+    and ``d^-``, and a level on a horizontal path keeps the derivative of the state it holds
+    (eqs. 7a-b, 14a-b)."""
+    g0, g1, g2 = 0.0, 0.0, 0.0
+    if backlash:
+        prev = _NEG
+        for k in range(levels.shape[0]):
+            u = levels[k]
+            lo = 1.0 * (u - dp)
+            hi = sd * (u - dm)
+            if prev < lo:
+                prev = lo
+                g0, g1, g2 = -1.0, 0.0, 0.0
+            elif prev > hi:
+                prev = hi
+                g0, g1, g2 = 0.0, u - dm, -sd
+            if k >= lead:
+                i = at + k - lead
+                v[i], dv[i, 0], dv[i, 1], dv[i, 2] = prev, g0, g1, g2
+    else:
+        a_dn = 1.0 / sd
+        prev = 0.0
+        for k in range(levels.shape[0]):
+            if k > 0:
+                dz = levels[k] - levels[k - 1]
+                if dz > 0.0:
+                    prev = 1.0 * levels[k] + dp
+                    g0, g1, g2 = 1.0, 0.0, 0.0
+                elif dz < 0.0:
+                    prev = a_dn * levels[k] + dm
+                    g0, g1, g2 = 0.0, -levels[k] / (sd * sd), 1.0
+            if k >= lead:
+                i = at + k - lead
+                v[i], dv[i, 0], dv[i, 1], dv[i, 2] = prev, g0, g1, g2
+
+
+@njit(cache=True)
+def _joint_model(backlash, up, lead_up, down, lead_down, X, se, z, want_jac):
+    """Weighted residuals ``(X_j - h_bar(V_j)) / se_j`` of the joint fit and, if ``want_jac``, their
+    Jacobian in ``z = (c_1..c_p, d^+, ln S^d, ln(d^+ - d^-))`` (non-finite entries -> 1e12 / 0)."""
+    p = z.shape[0] - 3
+    dp = z[p]
+    sd = np.exp(min(max(z[p + 1], -50.0), 50.0))
+    gap = np.exp(min(max(z[p + 2], -50.0), 50.0))
+    dm = dp - gap
+    n = X.shape[0]
+    v = np.empty(n)
+    dv = np.empty((n, 3))
+    _steady_grad(backlash, up, lead_up, dp, sd, dm, v, dv, 0)
+    _steady_grad(backlash, down, lead_down, dp, sd, dm, v, dv, up.shape[0] - lead_up)
+    r = np.empty(n)
+    J = np.zeros((n, p + 3))
+    for j in range(n):
+        w = v[j]
+        h = z[p - 1] if p > 0 else 0.0          # Horner on (0, c_1..c_p): same order as polyval
+        for i in range(p - 2, -1, -1):
+            h = z[i] + h * w
+        h = 0.0 + h * w
+        rj = (X[j] - h) / se[j]
+        ok = np.isfinite(rj)
+        r[j] = rj if ok else 1e12
+        if want_jac and ok:
+            hp = p * z[p - 1] if p > 0 else 0.0
+            for i in range(p - 2, -1, -1):
+                hp = (i + 1) * z[i] + hp * w
+            wi = 1.0
+            for i in range(p):
+                wi = wi * w
+                J[j, i] = -wi / se[j]
+            db0, db1, db2 = hp * dv[j, 0], hp * dv[j, 1], hp * dv[j, 2]
+            J[j, p] = -(db0 + db2) / se[j]
+            J[j, p + 1] = -(db1 * sd) / se[j] if -50.0 < z[p + 1] < 50.0 else 0.0
+            J[j, p + 2] = (db2 * gap) / se[j] if -50.0 < z[p + 2] < 50.0 else 0.0
+            for i in range(p + 3):
+                if not np.isfinite(J[j, i]):
+                    J[j, i] = 0.0
+    return r, J
+
+
 def _nls(kind: str, theta0: np.ndarray, data: _Data) -> tuple[np.ndarray, float]:
     """Weighted nonlinear least squares of all parameters on both staircases, from ``theta0``.
 
     Levenberg-Marquardt on ``(c_1..c_p, d^+, ln S^d, ln(d^+ - d^-))``, so that ``S^d > 0`` and
-    ``d^+ > d^-`` hold without bounds."""
+    ``d^+ > d^-`` hold without bounds, with the analytic Jacobian of ``h_bar(F_bar[U_j])``
+    (eqs. 5, 8: ``dX_j/dc_i = V_j^i``, ``dX_j/d border = h_bar'(V_j) dV_j/d border``)."""
     p = theta0.size - 3
+    args = (kind == "backlash", data.all_up, data.lead_up, data.all_down, data.lead_down, data.X, data.se)
 
     def to_theta(z):
         return np.concatenate([z[:p], [z[p], math.exp(min(max(z[p + 1], -50.0), 50.0)),
                                        z[p] - math.exp(min(max(z[p + 2], -50.0), 50.0))]])
 
     def fun(z):
-        with np.errstate(all="ignore"):
-            r = (data.X - _predict(kind, to_theta(z), data)) / data.se
-        return np.where(np.isfinite(r), r, 1e12)
+        return _joint_model(*args, z, False)[0]
+
+    def jac(z):
+        return _joint_model(*args, z, True)[1]
 
     z0 = np.concatenate([theta0[:p], [theta0[-3], math.log(max(theta0[-2], 1e-6)),
                                       math.log(max(theta0[-3] - theta0[-1], 1e-6))]])
     try:
-        r = optimize.least_squares(fun, z0, method="lm", x_scale="jac", xtol=1e-10, ftol=1e-10, gtol=1e-10,
-                                   max_nfev=60 * (p + 4))
+        z, _, _ = lm(fun, jac, z0, xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=60 * (p + 4))
     except ValueError:
         return theta0, np.inf
-    th = to_theta(r.x)
+    th = to_theta(z)
     return th, _chi2(kind, th, data)
 
 

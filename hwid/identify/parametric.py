@@ -21,9 +21,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import stats
 
 from hwid import HwidError
+from hwid.identify.lm import lm
 
 
 @dataclass(frozen=True)
@@ -150,10 +151,9 @@ def _fit_one(s, Gd, W, n, m, fit_delay, tau0):
         th0 = _levy_sk(s, Gd * np.exp(s * t0), n, m, weight)
         x0 = np.concatenate([th0, [t0]]) if fit_delay else th0
         try:
-            sol = optimize.least_squares(residual, x0, jac=jac, method="lm", xtol=1e-13, ftol=1e-13, max_nfev=2000)
+            x, _, _ = lm(residual, jac, x0, xtol=1e-13, ftol=1e-13, max_nfev=2000)
         except (ValueError, np.linalg.LinAlgError):
             continue
-        x = sol.x
         p = _poles_scaled(x[:n])
         if np.any(p.real >= 0):                   # reflect unstable poles and refit once
             p = np.where(p.real >= 0, -np.abs(p.real) - 1e-3 + 1j * p.imag, p)
@@ -161,11 +161,9 @@ def _fit_one(s, Gd, W, n, m, fit_delay, tau0):
             a = a / a[0]
             x0 = np.concatenate([a[1:], x[n:]])
             try:
-                sol = optimize.least_squares(residual, x0, jac=jac, method="lm", xtol=1e-13, ftol=1e-13,
-                                             max_nfev=2000)
+                x, _, _ = lm(residual, jac, x0, xtol=1e-13, ftol=1e-13, max_nfev=2000)
             except (ValueError, np.linalg.LinAlgError):
                 continue
-            x = sol.x
         chi2 = float(np.sum(residual(x) ** 2))
         if best is None or chi2 < best[1]:
             best = (x, chi2, jac(x))

@@ -96,7 +96,9 @@ def ar_long_run_variance(segments: list[np.ndarray], max_order: int = 20) -> flo
     acov = np.zeros(kmax + 1)
     for x in segs:
         for k in range(kmax + 1):
-            acov[k] += float(np.dot(x[: x.size - k], x[k:]))
+            # einsum's own loop, not BLAS: a threaded ddot of this size costs far more than it
+            # saves on a loaded machine or inside a worker of a parallel batch
+            acov[k] += float(np.einsum("i,i->", x[: x.size - k], x[k:]))
     acov /= n
     if acov[0] <= 0:
         return 0.0
