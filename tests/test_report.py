@@ -487,3 +487,40 @@ def test_batch_figures_split_by_stage():
     page = H.render_html(run, items, {i.name: b"png" for i in items})
     cells = _rows(page.replace("<tr><td>2</td>", "<tr data-x='p2'><td>2</td>", 1), "data-x", "p2")
     assert cells[3] == "d_plus" and _nums(cells[7]) == [0.02] and _nums(cells[8]) == [0.95]
+
+
+def test_diagnosis_section_holds_the_json_numbers(tmp_path):
+    """A ``hwid diagnose`` output directory (trusted simulator as ``--model``, a rig with a sensor
+    lag): the report shows the verdict table with the JSON's numbers, the candidates, and the
+    residual map and ranking figures."""
+    import yaml
+    from hwid.diagnose import diagnose
+    import diagnose_rigs as R
+    lv = [-1.0, -0.5, 0.0, 0.5, 1.0]
+    cfg_p = tmp_path / "lag.yaml"
+    cfg_p.write_text(yaml.safe_dump({
+        "name": "lag", "seed": 3, "sampling": {"dt": 0.04},
+        "plant": {"kind": "external", "callable": "diagnose_rigs:sensor_lag"},
+        "protocols": {"staircase": {"levels_up": lv, "levels_down": lv[::-1], "hold": 6.0},
+                      "sine": {"amplitude": 0.6, "frequencies": [0.5, 1.0], "periods": 2}}}))
+    model_p = tmp_path / "base.yaml"
+    model_p.write_text(yaml.safe_dump({"plant": R.BASE}))
+    out = tmp_path / "out"
+    s = diagnose(config.load(cfg_p), out, model=model_p, echo=lambda *a: None)
+    js = json.loads((out / "diagnosis.json").read_text())
+    path = H.write_report(out)
+    page = path.read_text()
+    names = [f["name"] for f in json.loads((out / "report" / "figures.json").read_text())]
+    assert names == ["diagnosis_residual_map", "diagnosis_ranking"]
+    assert "is missing" not in page                        # a diagnosis directory needs no stage files
+    m = re.search(r"<table id='diagnosis'>(.*?)</table>", page, re.S)
+    cells = [re.sub(r"<[^>]+>", "", c).strip() for c in re.findall(r"<td>(.*?)</td>", m.group(1), re.S)]
+    assert cells[0] == js["verdict"]["effect"] == s["verdict"]["effect"] == "sensor_lag"
+    assert cells[1] == js["verdict"]["block"]
+    for cell, key in zip(cells[3:6], ("gap_before", "gap_after", "noise_floor")):
+        assert _nums(cell)[0] == pytest.approx(js[key], rel=1e-3)
+    assert _nums(cells[2])[0] == pytest.approx(js["verdict"]["explained_fraction"], abs=1e-3)
+    cand = re.search(r"<table id='candidates'>(.*?)</table>", page, re.S).group(1)
+    first = [re.sub(r"<[^>]+>", "", c).strip() for c in re.findall(r"<td>(.*?)</td>", cand, re.S)][:4]
+    assert first[0] == js["candidates"][0]["effect"]
+    assert _nums(first[3])[0] == pytest.approx(js["candidates"][0]["gap_after"], rel=1e-3)

@@ -31,7 +31,7 @@ import numpy as np
 from hwid import HwidError, __version__
 from hwid.report import figures as F
 
-FILES = ("simulation.h5", "nonlinear.h5", "linear.h5", "batch.h5")
+FILES = ("simulation.h5", "nonlinear.h5", "linear.h5", "batch.h5", "diagnosis.h5")
 
 # ---- the paper's published numbers (Section 6), shown beside ours when the config is the paper's
 PAPER_CONFIG_NAME = "paper-section6"
@@ -64,6 +64,7 @@ class RunData:
     nonlinear: Any = None                       # stage 1 result
     linear: Any = None                          # stage 2 result
     batch: dict | None = None                   # hwid.batch.load_summary(...)
+    diagnosis: dict | None = None               # hwid.diagnose.load_diagnosis(...)
     notes: list[str] = field(default_factory=list)   # what is missing, what could not be shown
 
     @property
@@ -153,7 +154,7 @@ def load_run(directory: str | Path) -> RunData:
         from hwid.model import from_config
         run.truth = from_config(run.cfg.plant).normalised()
 
-    batch_only = present["batch.h5"] and not any(present[n] for n in FILES[:3])
+    batch_only = (present["batch.h5"] or present["diagnosis.h5"]) and not any(present[n] for n in FILES[:3])
     if present["nonlinear.h5"]:
         run.nonlinear = _load_stage("hwid.identify.nonlinear", "load_nonlinear", d / "nonlinear.h5", run)
         _records_from(d / "nonlinear.h5", "nonlinear", run)
@@ -175,6 +176,13 @@ def load_run(directory: str | Path) -> RunData:
             run.notes.append("batch.h5 is present but this hwid has no batch module to read it")
         else:
             run.batch = load_summary(d / "batch.h5")
+    if present["diagnosis.h5"]:
+        from hwid.diagnose.figures import load_diagnosis
+        from hwid.results import ResultsError
+        try:
+            run.diagnosis = load_diagnosis(d / "diagnosis.h5")
+        except ResultsError as err:
+            run.notes.append(f"diagnosis.h5 could not be read ({err})")
     return run
 
 
@@ -713,7 +721,45 @@ def build_figures(run: RunData) -> list[FigureItem]:
                                         "where the truth is 0) with the CRLB standard deviation (dashed, where "
                                         "known), and the coverage of the 95 % intervals, against the swept key.",
                                         F.plot_batch_summary(run.batch, sel), "batch"))
+    if run.diagnosis is not None:
+        from hwid.diagnose.figures import plot_ranking, plot_residual_map
+        items.append(FigureItem("diagnosis_residual_map", "diagnosis",
+                                "Residual map of the validation experiments: local RMS gap over the noise floor, "
+                                "before (left) and after (right) adding the verdict's effect.",
+                                plot_residual_map(run.diagnosis), "diagnosis_map"))
+        items.append(FigureItem("diagnosis_ranking", "diagnosis",
+                                "Ranking of the catalogue: the share of the gap above the noise floor that each "
+                                "effect explains on validation data its fit did not use.",
+                                plot_ranking(run.diagnosis), "diagnosis_ranking"))
     return items
+
+
+def diagnosis_html(diag: dict) -> str:
+    """The verdict table of ``hwid diagnose`` (the numbers of its JSON summary) and the candidates."""
+    s = diag["summary"]
+    v, w = s["verdict"], s.get("where", {})
+    rows = [_tr(["verdict", "block", "explained", "gap before", "gap after", "noise floor", "where", "trend"], True),
+            _tr([_html.escape(str(v["effect"])), _html.escape(str(v["block"])), _num(v["explained_fraction"], 3),
+                 _num(s["gap_before"]), _num(s["gap_after"]), _num(s["noise_floor"]),
+                 _html.escape(str(w.get("region", ""))), _html.escape(str(w.get("trend", "")))])]
+    out = [f"<table id='diagnosis'>{''.join(rows)}</table>"]
+    if "gap_model_refit" in s and s.get("model", {}).get("source") == "identified":
+        out.append(f"<p>Model identified from the same plant; with h re-estimated on the diagnosis's fit "
+                   f"experiments its gap is {_num(s['gap_model_refit'])}.</p>")
+    exps = w.get("experiments", [])[:8]
+    if exps:
+        er = [_tr(["experiment", "gap before / noise", "gap after / noise"], True)]
+        er += [_tr([_html.escape(e["name"]), _num(e["before_over_noise"], 3), _num(e["after_over_noise"], 3)])
+               for e in exps]
+        out.append(f"<details><summary>per experiment (largest gaps)</summary><table>{''.join(er)}</table></details>")
+    cr = [_tr(["candidate", "block", "explained", "gap after", "score", "parameters"], True)]
+    for c in s.get("candidates", []):
+        par = ", ".join(f"{k} = {_num(x)}" for k, x in c.get("params", {}).items())
+        cr.append(_tr([_html.escape(c["effect"]), _html.escape(str(c.get("block", ""))),
+                       _num(c["explained_fraction"], 3), _num(c["gap_after"]), _num(c["score"], 4),
+                       _html.escape(par)]))
+    out.append(f"<table id='candidates'>{''.join(cr)}</table>")
+    return "".join(out)
 
 
 def _pair(ci):
@@ -1010,6 +1056,9 @@ def render_html(run: RunData, items: list[FigureItem], pngs: dict[str, bytes]) -
                   "<h3>Table 2: frequency gain estimates</h3>", table2_html(run), figs("stage2")]
     if run.batch is not None:
         parts += ["<h2>Monte Carlo batch</h2>", batch_table_html(run.batch), figs("batch")]
+    if run.diagnosis is not None:
+        parts += ["<h2>Diagnosis: where and why the plant and the model part</h2>",
+                  diagnosis_html(run.diagnosis), figs("diagnosis")]
     parts += ["<h2>Warnings</h2>", warnings_html(run), "<h2>Provenance</h2>", provenance_html(run),
               "</body></html>"]
     return "\n".join(parts)
