@@ -8,9 +8,12 @@
   hwid closes only the client it opened, never a cluster it did not create.
 * One writer: workers return plain dicts; only the parent writes. Each finished run is appended to
   ``DIR/batch.jsonl`` (flushed and fsynced, one line per run), and ``DIR/batch.h5`` is rebuilt from
-  the journal by an atomic rename every few seconds and at the end. A SIGKILL at any moment loses at
-  most the runs in flight (a torn last journal line is ignored); running the same command again
-  computes only the missing runs.
+  the journal by an atomic rename every few seconds and at the end (the rebuild grows with the
+  journal, so its interval grows too: at most ~4 % of the parent's time, which shares the cores with
+  the workers). A SIGKILL at any moment loses at most the runs in flight (a torn last journal line is
+  ignored); running the same command again computes only the missing runs.
+* Threads: each local worker limits BLAS/OpenMP to one thread when ``threadpoolctl`` is installed
+  (J workers on J cores; a threaded BLAS inside each worker only oversubscribes them).
 """
 from __future__ import annotations
 
@@ -21,7 +24,7 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -151,6 +154,15 @@ class _TimedPlant:
             self.seconds += time.perf_counter() - t0
 
 
+def _worker_init():
+    """Pool initializer: one BLAS/OpenMP thread per worker (the pool is the parallelism)."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:          # optional: the hot paths of both stages avoid large BLAS calls anyway
+        return
+    threadpool_limits(limits=1)
+
+
 def _task(args):
     point, run, cfg_text, seed = args
     t0 = time.perf_counter()
@@ -240,8 +252,9 @@ def run_batch(cfg, runs: int, out_dir: str | Path, sweeps: list[tuple[str, list]
                 raise HwidError(f"--scheduler {scheduler}: cannot connect ({err})") from None
             executor = own.get_executor()
         else:
-            own = executor = cf.ProcessPoolExecutor(max_workers=max(1, jobs))
+            own = executor = cf.ProcessPoolExecutor(max_workers=max(1, jobs), initializer=_worker_init)
     last = time.monotonic()
+    interval = flush_seconds
     try:
         with open(jpath, "ab") as jf, Progress(len(bp.points) * runs, "batch", "runs", enabled=progress) as bar:
             bar.update(len(bp.points) * runs - len(todo))
@@ -252,9 +265,11 @@ def run_batch(cfg, runs: int, out_dir: str | Path, sweeps: list[tuple[str, list]
                 jf.flush()
                 os.fsync(jf.fileno())
                 bar.update()
-                if time.monotonic() - last > flush_seconds:
+                if time.monotonic() - last > interval:
+                    t0 = time.monotonic()
                     write_batch_h5(out, bp)
                     last = time.monotonic()
+                    interval = max(flush_seconds, 25 * (last - t0))
     finally:
         if own is not None:
             if isinstance(own, cf.Executor):

@@ -26,18 +26,28 @@ mean ``s_0`` carries no information about G and is left out of both estimators a
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 from typing import Any, Optional, Protocol, Sequence
 
 import numpy as np
+from numba import njit
 from scipy import stats
 
 from hwid import HwidError
 from hwid.blocks.static import polyval
 from hwid.identify.harmonics import HarmonicFit, HarmonicModel, fit_harmonics, period_sums, span_projector
 from hwid.identify.lm import lm
+
+
+@njit(cache=True)
+def _all_close(a, b, atol):
+    """``np.allclose(a, b, rtol=0, atol=atol)`` for finite ``b``, in one pass without temporaries."""
+    for i in range(a.shape[0]):
+        if not abs(a[i] - b[i]) <= atol:
+            return False
+    return True
 
 
 class ExtrapolationWarning(UserWarning):
@@ -227,8 +237,7 @@ class LinearEstimator:
         u = getattr(record, "u", None)
         if u is not None and nonlinear is not None:
             v = np.asarray(nonlinear.input_nonlinearity().apply(np.asarray(u, float)), float)
-            # = not allclose(v, z, rtol=0, atol), in one pass over the record
-            if not np.all(np.abs(v - sine.z[: v.size]) <= 1e-12 * max(1.0, sine.amplitude)):
+            if not _all_close(v, np.ascontiguousarray(sine.z[: v.size]), 1e-12 * max(1.0, sine.amplitude)):
                 S = period_sums(v, record.dt, sine.omega, k_dist)
                 used = slice(hf.first_period, hf.first_period + hf.periods)
                 th = np.linalg.solve(S.XtX[used].sum(0), S.Xty[used].sum(0))
@@ -345,7 +354,7 @@ class LinearEstimator:
     def refit(self, nonlinear, g_model=None) -> "LinearEstimator":
         """Re-estimate from the stored harmonic fit with another stage 1 result or ``g_model``."""
         hf, sine, record = self.harmonics_, self._sine, self._record
-        omega, dt, U = float(sine.omega), float(record.dt), float(sine.amplitude)
+        omega, U = float(sine.omega), float(sine.amplitude)
         self.warnings_ = list(self.data_warnings_)
         hm = HarmonicModel(tuple(nonlinear.h_coefficients))
         k_max = self._k_max
@@ -593,7 +602,7 @@ class _Distorted:
         if M is None:
             M = 1 << int(np.ceil(np.log2(8 * max(hm.degree, 1) * max(len(W), int(self.ks.max()) + 1))))
         self.M = M
-        self.th = th = 2 * np.pi * np.arange(M) / M
+        self.th = 2 * np.pi * np.arange(M) / M
         d = np.full(M, float(np.real(W[0])))
         E = _rotations(M, len(W))
         for k in range(2, len(W)):
@@ -802,15 +811,29 @@ def estimate_response(records, sines, nonlinear, cfg=None, estimator: LinearEsti
                         tuple(harm), np.array([e.extrapolated_ for e in ests]), tuple(warns), precompensator)
 
 
+@lru_cache(maxsize=2)
+def _sines(amplitude: float, frequencies: tuple, periods: int, lead_in_periods: int, dt: float) -> tuple:
+    """:func:`hwid.protocols.sines` of a config, computed once per process (a Monte Carlo batch
+    runs the same sines every run: 6e6 samples of eq. 15 for the paper config); read only."""
+    from hwid import protocols
+    out = tuple(protocols.sine(amplitude, w, periods, lead_in_periods, dt, name=f"sine_{i}")
+                for i, w in enumerate(frequencies))
+    for s in out:
+        s.t.flags.writeable = False
+        s.z.flags.writeable = False
+    return out
+
+
 def run_sines(cfg, nonlinear, plant=None, journal_dir=None, progress: bool | None = None):
     """Drive the plant with each sine of ``cfg`` through the pre-compensator built from ``nonlinear``
     (Fig. 8); return ``(sines, records)``."""
-    from hwid import protocols
     from hwid.plant import make_plant
     from hwid.progress import Progress
     if cfg.protocols.sine is None:
         raise HwidError(f"{cfg.source_path}: protocols.sine is missing; stage 2 needs the sine experiments")
-    sines = protocols.sines(cfg)
+    sn = cfg.protocols.sine
+    sines = list(_sines(float(sn.amplitude), tuple(float(w) for w in sn.frequencies), int(sn.periods),
+                        int(sn.lead_in_periods), float(cfg.sampling.dt)))
     plant = plant if plant is not None else make_plant(cfg, journal_dir=journal_dir)
     F = nonlinear.input_nonlinearity()
     kind = cfg.identification.linear.precompensator

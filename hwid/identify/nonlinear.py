@@ -1182,7 +1182,7 @@ def format_summary(result: NonlinearResult) -> str:
     conf = result.fit.get("confidence", 0.95)
     lines = [f"input nonlinearity: {result.type}   ({result.evidence})",
              f"normalised model (eqs. 4a-c), {100 * conf:g} % intervals; method {result.method}:",
-             f"  slope_up   = 1 (normalisation)",
+             "  slope_up   = 1 (normalisation)",
              f"  slope_down = {pm('slope_down')}",
              f"  d_plus     = {pm('d_plus')}",
              f"  d_minus    = {pm('d_minus')}",
