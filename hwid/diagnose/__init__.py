@@ -233,11 +233,11 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
     res_before = [y - x for y, x in zip(y_val, sim_val.x)]
     gap_before = Gp.gap(res_before, m_val)
     n_val = int(sum(m.sum() for m in m_val))
-    # an identified model: h is re-estimated (on the fit experiments) with every effect and alone;
-    # the test asks whether the model with h re-estimated leaves more than noise
+    # an identified model: h, F and G are re-estimated (on the fit experiments) with every effect and
+    # alone; the test asks whether the model with h, F and G re-estimated leaves more than noise
     fitter = R.EffectFitter(sim_fit, [records[i].y for i in fit_idx], [exps[i].mask for i in fit_idx],
                             sim_val, y_val, m_val, [exps[i].name for i in val_idx], sc, nf.sigma, nf.kappa,
-                            refit_h=identified)
+                            refit_h=identified, refit_g=identified)
     gap_ref = fitter.gap_ref
     id_err = identification_error(sim_model, origin.pop("records", []), d.dt, d.settle_s, nf.sigma) \
         if identified else None
@@ -245,12 +245,11 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
         echo(f"identification error: gap {id_err['gap']:.4g} on its own records, excess {id_err['excess']:.4g}")
         # the identification's error on its own records carries whatever effect the plant has (it
         # could not be fitted either), so it is reported, not used as a floor (it hid effects 10x
-        # the noise). An identified model with h re-estimated counts as adequate within 1.5x the
-        # noise floor (RMS), the tolerance the diagnosis itself meets after adding an effect
-        test = Gp.gap_test(gap_ref, n_val, nf, min_ratio=1.5 ** 2)
-    else:
-        test = Gp.gap_test(gap_ref, n_val, nf)
-    echo(f"gap before {gap_before:.4g}" + (f" (h re-estimated: {gap_ref:.4g})" if fitter.refit_h else "")
+        # the noise). With h, F and G re-estimated on the diagnosis's fit experiments the model
+        # leaves noise alone on a plain rig, so the test is the same as for a trusted simulator
+    test = Gp.gap_test(gap_ref, n_val, nf)
+    echo(f"gap before {gap_before:.4g}" + (f" ({'h, F and G' if fitter.refit_g else 'h'} re-estimated: {gap_ref:.4g})"
+                                             if fitter.refit_h else "")
          + f", noise floor {nf.sigma:.4g} (power ratio {test.ratio:.3g}, z {test.z:.1f}): "
          f"{'more than noise' if test.significant else 'consistent with noise'}")
     effs = catalogue(sc)
@@ -266,6 +265,21 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
     drift_ok = bool(nf.slow_z > 10 and add["additive"])
     if not drift_ok:    # drift listed last: the plant repeats itself, or what changes is not additive
         cands = [c for c in cands if c.effect != "drift"] + [c for c in cands if c.effect == "drift"]
+    by_effect = None
+    if identified and not test.significant:
+        # the re-estimated model may come within a few per cent of the noise floor and still miss an
+        # effect that the validation data show beyond doubt: the likelihood ratio of the best
+        # eligible candidate against the refit model, on validation data the fit never saw, is the
+        # second test (5 sigma, as the gap test: chi^2_1 > 25; and its BIC score above 0)
+        best = next((c for c in cands if c.effect != "drift" or drift_ok), None)
+        n_eff = max(n_val / nf.kappa, 2.0)
+        if best is not None:
+            lr = float(best.score + best.k * np.log(n_eff))
+            by_effect = {"effect": best.effect, "likelihood_ratio": lr, "score": best.score,
+                         "significant": bool(best.explained_fraction >= 0.5 and best.score > 0 and lr > 25.0)}
+            if by_effect["significant"]:
+                import dataclasses
+                test = dataclasses.replace(test, significant=True)
     v = R.verdict(cands, test.significant, drift_ok)
     t_fit = time.perf_counter() - t0
 
@@ -295,9 +309,10 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
         "verdict": {"effect": name, "block": block, "explained_fraction": float(ef)},
         "gap_before": float(gap_before), "gap_after": float(gap_after), "noise_floor": float(nf.sigma),
         "gap_model_refit": float(gap_ref),
+        "model_refit": fitter.model_dict(fitter.g_p) if fitter.refit_g else None,
         "where": where,
         "candidates": [{**c.to_dict(), "eligible": bool(c.effect != "drift" or drift_ok)} for c in cands],
-        "test": {**test.to_dict(), "identification_error": id_err},
+        "test": {**test.to_dict(), "identification_error": id_err, "by_effect": by_effect},
         "noise": nf.to_dict(),
         "model": {**origin, **sim_model.to_dict()},
         "design": {"settle_s": d.settle_s, "omega_c": d.omega_c, "u_range": [d.u_lo, d.u_hi],

@@ -24,6 +24,7 @@ from scipy.optimize import least_squares
 
 from hwid.diagnose import effects as E
 from hwid.diagnose.gap import rms
+from hwid.model import InputNonlinearity
 
 
 @dataclass
@@ -38,12 +39,16 @@ class Candidate:
     k: float
     per_experiment: dict = field(default_factory=dict)
     predictions: list = field(default_factory=list, repr=False)   # validation model outputs
+    model: dict | None = None      # F and G re-estimated with the effect (identified models)
 
     def to_dict(self) -> dict:
-        return {"effect": self.effect, "params": self.params, "gap_after": self.gap_after,
-                "explained_fraction": self.explained_fraction, "score": self.score,
-                "block": self.block, "gap_fit": self.gap_fit, "n_params": self.k,
-                "per_experiment": self.per_experiment}
+        d = {"effect": self.effect, "params": self.params, "gap_after": self.gap_after,
+             "explained_fraction": self.explained_fraction, "score": self.score,
+             "block": self.block, "gap_fit": self.gap_fit, "n_params": self.k,
+             "per_experiment": self.per_experiment}
+        if self.model is not None:
+            d["model"] = self.model
+        return d
 
 
 def excess(gap_rms: float, sigma: float) -> float:
@@ -81,10 +86,27 @@ class EffectFitter:
         effect's parameters, and measure the effects against the model with h re-estimated alone
         (``gap_refit``). For a model identified on the same plant: the identification has absorbed
         part of any effect into h, and its own error in h is not the plant's.
+    refit_g : bool
+        Also re-estimate F and G (with ``refit_h``), jointly with h and every effect's parameters,
+        and alone for the baseline ("model refit alone"). G: the non-constant coefficients of the
+        identified ``num/den``, normalised so ``G(0) = 1``, each scaled by a factor in [1/5, 5] (no
+        coefficient changes sign: the pole/zero count and the static gain are kept; a denominator
+        of order 3 or more is also checked for stability). F: ``d^+`` and ``d^-`` shifted by up to
+        10 % of the input range, ``S^d`` scaled by a factor in [2/3, 3/2]. The identification has
+        absorbed part of any dynamic effect (a delay, a mode, a sensor lag, a slew) into G and of
+        any input effect into the borders; an effect fitted against a fixed model cannot take it
+        back, and the identification's own error in F or G would be credited to whichever flexible
+        effect (curved borders) mends it. The baseline and every candidate carry the same model
+        parameters, so the information criterion counts only the effect's own.
     """
 
+    G_FACTOR = 5.0
+    # stopping rules of the joint fits (F, G, h and an effect): 1e-6 of the cost is far below what
+    # the validation gap can tell apart
+    JOINT_TOL = {"ftol": 1e-6, "xtol": 1e-6, "gtol": 1e-6}
+
     def __init__(self, sim_fit, y_fit, m_fit, sim_val, y_val, m_val, names_val, scale, sigma, kappa,
-                 max_samples: int = 60000, refit_h: bool = False):
+                 max_samples: int = 60000, refit_h: bool = False, refit_g: bool = False):
         self.sf, self.sv = sim_fit, sim_val
         self.yf, self.yv = [np.asarray(y, float) for y in y_fit], [np.asarray(y, float) for y in y_val]
         self.mf, self.mv = [np.asarray(m, bool) for m in m_fit], [np.asarray(m, bool) for m in m_val]
@@ -100,6 +122,10 @@ class EffectFitter:
         h = sim_fit.model.output
         self.refit_h = bool(refit_h and hasattr(h, "coefficients"))
         self.gap_ref = self.gap_before
+        self.refit_g = False
+        self.g_p = np.zeros(0)
+        if self.refit_h and refit_g:
+            self._init_g(sim_fit.model.input, sim_fit.model.linear)
         if self.refit_h:
             from hwid.blocks.static import PolynomialH
             ident = PolynomialH((0.0, 1.0))
@@ -107,6 +133,8 @@ class EffectFitter:
             self.degree = max(len(h.coefficients) - 1, 1)
             wf = np.concatenate([w[m] for w, m in zip(sim_fit.w, self.mf)])
             self._w_c, self._w_r = 0.5 * (wf.max() + wf.min()), max(0.5 * (wf.max() - wf.min()), 1e-12)
+            if self.refit_g:
+                self.g_p = self._fit_baseline_g()
             self.baseline_val = self._refit_predict(None, None, "val")
             self.baseline_fit = self._refit_predict(None, None, "fit")
             self.gap_ref = rms(np.concatenate([(y - x)[m] for y, x, m in zip(self.yv, self.baseline_val, self.mv)]))
@@ -116,7 +144,11 @@ class EffectFitter:
         return np.polynomial.legendre.legvander((np.asarray(w, float) - self._w_c) / self._w_r, self.degree)
 
     def _designs(self, eff, theta, which) -> list[np.ndarray]:
-        simw = self.sfw if which == "fit" else self.svw
+        if self.refit_g:
+            theta, g = self._split(eff, theta)
+            simw = self._g_sims(g)[0 if which == "fit" else 1]
+        else:
+            simw = self.sfw if which == "fit" else self.svw
         out = []
         for i in range(len(simw.inputs)):
             Phi = self._basis(simw.w[i] if eff is None else eff.pre(simw, theta, i))
@@ -131,14 +163,14 @@ class EffectFitter:
         st = self.stride
         A = np.concatenate([P[m][::st] for P, m in zip(Phis, self.mf)])
         b = np.concatenate([y[m][::st] for y, m in zip(self.yf, self.mf)])
-        c = np.linalg.lstsq(A, b, rcond=None)[0]
+        c = _lsq(A, b)
         if eff is not None and not eff.post_linear:
             for _ in range(2):
                 p = A @ c
                 sel = np.abs(eff.post(p, theta, self.sf.dt) - p) <= 0.0
                 if sel.sum() <= 2 * A.shape[1]:
                     break
-                c = np.linalg.lstsq(A[sel], b[sel], rcond=None)[0]
+                c = _lsq(A[sel], b[sel])
         return c
 
     def _refit_predict(self, eff, theta, which) -> list[np.ndarray]:
@@ -149,6 +181,96 @@ class EffectFitter:
         if eff is not None and not eff.post_linear:
             out = [eff.post(x, theta, self.sf.dt) for x in out]
         return out
+
+    # ------------------------------------------------------------------------ G re-estimated jointly
+    def _init_g(self, F, G) -> None:
+        self._f0 = F
+        W = self.scale.u_width
+        # F: both borders shifted by up to 10 % of the input range, S^d by a factor in [2/3, 3/2]
+        # (the ascending slope is the normalisation, eq. 4a)
+        self._f_free = [("d_plus", 0.1 * W), ("d_minus", 0.1 * W), ("slope_down", np.log(1.5))]
+        self._g_free = []
+        num = np.asarray(G.num, float)
+        den = np.asarray(G.den, float)
+        self._g_delay = float(G.delay)
+        if den.size >= 2 and den[-1] != 0 and num[-1] != 0:
+            self._g_num, self._g_den = num / den[-1], den / den[-1]
+            self._g_num = self._g_num / self._g_num[-1]              # G(0) = 1
+            self._g_free = [("num", k) for k in range(self._g_num.size - 1) if self._g_num[k] != 0] + \
+                           [("den", k) for k in range(self._g_den.size - 1) if self._g_den[k] != 0]
+        else:       # a static G, or one with a pole or zero at s = 0: kept as it is
+            self._g_num, self._g_den = num, den
+        self.refit_g = True
+        self.g_p = np.zeros(self.n_g)
+        self._g_cache = {}
+
+    @property
+    def n_g(self) -> int:
+        """The model's re-estimated parameters (F's, then G's)."""
+        return len(self._f_free) + len(self._g_free) if self.refit_g else 0
+
+    def input_nl(self, m) -> InputNonlinearity:
+        """F for the model parameters ``m`` (shifts of d+ and d-, log factor on S^d)."""
+        F = self._f0
+        a, b, c = (float(x) for x in np.asarray(m, float)[:3])
+        dp, dm = F.d_plus + a, F.d_minus + b
+        if dp <= dm:
+            dp = dm = 0.5 * (dp + dm)
+            dp += 1e-9
+        return InputNonlinearity(F.type, F.slope_up, F.slope_down * np.exp(c), dp, dm)
+
+    def linear(self, m) -> "LinearBlock":
+        """G for the model parameters ``m`` (log factors on the free coefficients of num/den)."""
+        from hwid.blocks.linear import LinearBlock
+        num, den = self._g_num.copy(), self._g_den.copy()
+        for (which, k), p in zip(self._g_free, np.asarray(m, float)[len(self._f_free):]):
+            (num if which == "num" else den)[k] *= np.exp(p)
+        return LinearBlock(tuple(num.tolist()), tuple(den.tolist()), self._g_delay)
+
+    def _stable(self, G) -> bool:
+        if len(G.den) <= 3:
+            return True     # positive coefficients (the factors keep their signs): stable up to order 2
+        return bool(np.all(np.real(np.roots(G.den)) < 0))
+
+    def _g_sims(self, m):
+        key = tuple(np.round(np.asarray(m, float), 12).tolist())
+        hit = self._g_cache.get(key)
+        if hit is None:
+            if len(self._g_cache) > 8:
+                self._g_cache.clear()
+            F, G = self.input_nl(m), self.linear(m)
+            hit = (_GSim(self.sfw, F, G), _GSim(self.svw, F, G))
+            self._g_cache[key] = hit
+        return hit
+
+    def _split(self, eff, theta):
+        """``theta`` -> (the effect's parameters, G's): G's are the last ``n_g``; without them, the
+        baseline's G."""
+        if eff is None:
+            return None, (self.g_p if theta is None else np.asarray(theta, float))
+        t = np.asarray(theta, float)
+        ne = len(eff.params)
+        return t[:ne], (t[ne:] if t.size > ne else self.g_p)
+
+    def _g_bounds(self):
+        b = np.r_[[w for _, w in self._f_free], np.full(len(self._g_free), np.log(self.G_FACTOR))]
+        return -b, b
+
+    def _fit_baseline_g(self) -> np.ndarray:
+        """G's parameters with h re-estimated and no effect, from the identified G."""
+        lo, hi = self._g_bounds()
+        logs = (False,) * self.n_g
+
+        def fun(x):
+            return self._residual(None, self._from_unit(x, lo, hi, logs))
+        x0 = self._to_unit(np.zeros(self.n_g), lo, hi, logs)
+        try:
+            sol = least_squares(fun, x0, bounds=(0.0, 1.0), diff_step=1e-3, max_nfev=20 * (self.n_g + 1),
+                                method="trf", **self.JOINT_TOL)
+        except ValueError:
+            return np.zeros(self.n_g)
+        r0 = fun(x0)
+        return self._from_unit(sol.x, lo, hi, logs) if 2 * sol.cost < float(r0 @ r0) else np.zeros(self.n_g)
 
     def _with_x(self, sim, xs):
         new = object.__new__(type(sim))
@@ -180,6 +302,8 @@ class EffectFitter:
         sim, ys, ms = (self.sf, self.yf, self.mf) if which == "fit" else (self.sv, self.yv, self.mv)
         st = self.stride if which == "fit" else 1
         if self.refit_h:
+            if self.refit_g and not self._stable(self.linear(self._split(eff, theta)[1])):
+                return np.concatenate([(y[m])[::st] for y, m in zip(ys, ms)]) * 10.0
             xs = self._refit_predict(eff, theta, which)
             return np.concatenate([((y - x)[m])[::st] for y, x, m in zip(ys, xs, ms)])
         parts = []
@@ -195,6 +319,11 @@ class EffectFitter:
         lo, hi = eff.bounds(self.scale)
         logs = eff.log_params()
         starts = eff.starts(self.scale)
+        if self.refit_g:   # G's parameters after the effect's, starting from the baseline's G
+            glo, ghi = self._g_bounds()
+            lo, hi = np.r_[lo, glo], np.r_[hi, ghi]
+            logs = tuple(logs) + (False,) * self.n_g
+            starts = [np.r_[np.asarray(th, float), self.g_p] for th in starts]
         costs = []
         for th in starts:
             th = np.clip(th, lo, hi)
@@ -211,14 +340,19 @@ class EffectFitter:
             def fun(x):
                 return self._residual(eff, self._from_unit(x, lo, hi, logs))
             try:
-                sol = least_squares(fun, x0, bounds=(0.0, 1.0), diff_step=1e-3, x_scale=1.0,
-                                    max_nfev=40 * (len(x0) + 1), method="trf")
+                if self.refit_g:    # more parameters, each iteration costs more: looser stops
+                    sol = least_squares(fun, x0, bounds=(0.0, 1.0), diff_step=1e-3, x_scale=1.0,
+                                        max_nfev=20 * (len(x0) + 1), method="trf", **self.JOINT_TOL)
+                else:
+                    sol = least_squares(fun, x0, bounds=(0.0, 1.0), diff_step=1e-3, x_scale=1.0,
+                                        max_nfev=40 * (len(x0) + 1), method="trf")
             except ValueError:
                 continue
             c = float(2 * sol.cost)
             if c < best_cost:
                 best_cost, best = c, self._from_unit(sol.x, lo, hi, logs)
-        return self._score(eff, best, len(best))
+        # the G parameters are the baseline's too: only the effect's own count
+        return self._score(eff, best, len(eff.params))
 
     def _fit_drift(self, eff: E.Drift) -> Candidate:
         """The smoother's width by generalised cross-validation on the fit data."""
@@ -262,7 +396,54 @@ class EffectFitter:
         score = float(n_eff * np.log(max(gb * gb, 1e-300) / max(ga * ga, 1e-300)) - k * np.log(n_eff))
         params = {p: float(v) for p, v in zip(eff.params, theta)}
         per = {name: rms(r) for name, r in zip(self.names_val, res)}
-        return Candidate(eff.name, eff.block, params, gf, ga, ef, score, float(k), per, preds)
+        c = Candidate(eff.name, eff.block, params, gf, ga, ef, score, float(k), per, preds)
+        if self.refit_g:
+            c.model = self.model_dict(self.g_p if eff.disturbance else self._split(eff, theta)[1])
+        return c
+
+    def model_dict(self, m) -> dict:
+        """F and G for the model parameters ``m``, as in the summary's ``model``."""
+        F, G = self.input_nl(m), self.linear(m)
+        return {"input_nonlinearity": F.to_dict(), "linear": {"num": list(G.num), "den": list(G.den),
+                                                              "delay": G.delay}}
+
+
+def _lsq(A, b) -> np.ndarray:
+    """Least squares for a tall, well-conditioned design (h's Legendre basis on [-1, 1]): normal
+    equations, or an SVD when they are too ill-conditioned to trust."""
+    AtA = A.T @ A
+    if np.linalg.cond(AtA) < 1e10:
+        return np.linalg.solve(AtA, A.T @ b)
+    return np.linalg.lstsq(A, b, rcond=None)[0]
+
+
+class _GSim(E.ModelSim):
+    """``base`` (a :class:`ModelSim`) with F and G replaced: ``v``, ``w`` and ``x`` computed on first
+    use (an effect that re-simulates from ``u`` or ``v`` never needs the later ones)."""
+
+    def __init__(self, base, F, G):
+        from hwid.model import HWModel
+        self.model = HWModel(F, G, base.model.output)
+        self.dt, self.inputs = base.dt, base.inputs
+        self._v = self._w = self._x = None
+
+    @property
+    def v(self):
+        if self._v is None:
+            self._v = [self.model.input.apply(u) for u in self.inputs]
+        return self._v
+
+    @property
+    def w(self):
+        if self._w is None:
+            self._w = [E.simulate_linear(self.model.linear, v, self.dt) for v in self.v]
+        return self._w
+
+    @property
+    def x(self):
+        if self._x is None:
+            self._x = [self.model.output(w) for w in self.w]
+        return self._x
 
 
 def fit_all(fitter: EffectFitter, effects: dict[str, E.Effect], echo=None) -> list[Candidate]:
