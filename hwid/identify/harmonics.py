@@ -269,10 +269,14 @@ def span_projector(start: int, stop: int, omega: float, dt: float, k_max: int):
     function of the data: returns ``fit(v) -> [dc, a_1..a_K, b_1..b_K]`` for ``v`` of length
     ``stop - start``, equal to ``pinv(X) @ v`` but without forming ``X`` (the Gram matrix is
     factorised once, ``X^T v`` is one pass of :func:`_harmonic_sums`)."""
-    from scipy.linalg import cho_factor, cho_solve
+    from scipy.linalg import LinAlgError, cho_factor, cho_solve
     K = int(k_max)
     G = harmonic_gram(np.array([start, stop]), float(omega), float(dt), K)[0]
-    cf = cho_factor(G)
+    try:
+        cf = cho_factor(G)
+    except LinAlgError:              # a harmonic at Nyquist or too few samples: the pseudo-inverse
+        P = np.linalg.pinv(_design(np.arange(start, stop) * dt, omega, K))
+        return lambda v: P @ np.asarray(v, float)
     bounds = np.array([0, stop - start], np.int64)
 
     def fit(v):
