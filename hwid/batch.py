@@ -12,8 +12,8 @@
   journal, so its interval grows too: at most ~4 % of the parent's time, which shares the cores with
   the workers). A SIGKILL at any moment loses at most the runs in flight (a torn last journal line is
   ignored); running the same command again computes only the missing runs.
-* Threads: each local worker limits BLAS/OpenMP to one thread when ``threadpoolctl`` is installed
-  (J workers on J cores; a threaded BLAS inside each worker only oversubscribes them).
+* Threads: each local worker limits BLAS to one thread (J workers on J cores; a threaded BLAS
+  inside each worker only oversubscribes them), with ``threadpoolctl`` when it is installed.
 """
 from __future__ import annotations
 
@@ -154,13 +154,39 @@ class _TimedPlant:
             self.seconds += time.perf_counter() - t0
 
 
-def _worker_init():
-    """Pool initializer: one BLAS/OpenMP thread per worker (the pool is the parallelism)."""
+def limit_blas_threads():
+    """One BLAS thread in this process: the initializer of the local pool's workers (the pool is the
+    parallelism).
+
+    An OpenBLAS thread pool in each of J workers on J cores only oversubscribes them: its threads
+    spin while they wait, and on a loaded machine a run costs 10-20 % more CPU. ``threadpoolctl``
+    does this for every BLAS when it is installed; without it the OpenBLAS libraries numpy and scipy
+    have loaded are told directly (Linux: found in ``/proc/self/maps``)."""
+    import importlib
+    importlib.import_module("scipy.linalg")          # scipy's OpenBLAS is loaded, as numpy's is
     try:
         from threadpoolctl import threadpool_limits
-    except ImportError:          # optional: the hot paths of both stages avoid large BLAS calls anyway
+    except ImportError:
+        pass
+    else:
+        threadpool_limits(limits=1)
         return
-    threadpool_limits(limits=1)
+    import ctypes
+    try:
+        with open("/proc/self/maps") as fh:
+            libs = {ln.split()[-1] for ln in fh if "openblas" in ln.lower() and ".so" in ln}
+    except OSError:
+        return
+    for path in libs:
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:
+            continue
+        for name in ("openblas_set_num_threads", "openblas_set_num_threads64_",
+                     "scipy_openblas_set_num_threads", "scipy_openblas_set_num_threads64_"):
+            fn = getattr(lib, name, None)
+            if fn is not None:
+                fn(1)
 
 
 def _task(args):
@@ -252,7 +278,7 @@ def run_batch(cfg, runs: int, out_dir: str | Path, sweeps: list[tuple[str, list]
                 raise HwidError(f"--scheduler {scheduler}: cannot connect ({err})") from None
             executor = own.get_executor()
         else:
-            own = executor = cf.ProcessPoolExecutor(max_workers=max(1, jobs), initializer=_worker_init)
+            own = executor = cf.ProcessPoolExecutor(max_workers=max(1, jobs), initializer=limit_blas_threads)
     last = time.monotonic()
     interval = flush_seconds
     try:
