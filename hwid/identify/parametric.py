@@ -252,7 +252,8 @@ def fit_rational(omega, G, cov, gain=None, phase=None, max_order: int = 4, fit_d
     for i, p in enumerate(poles):
         g = -(p ** np.arange(1, n + 1)) / np.polynomial.polynomial.polyval(p, dA)   # dp/da
         Jr = np.vstack([g.real, g.imag])
-        pc[i] = Jr @ cov_u[:n, :n] @ Jr.T
+        with np.errstate(invalid="ignore", over="ignore"):   # a singular fit: intervals are NaN/inf
+            pc[i] = Jr @ cov_u[:n, :n] @ Jr.T
     order = np.lexsort((poles.imag, poles.real))
     poles, pc = poles[order], pc[order]
     den = Ap[::-1] / Ap[-1]
