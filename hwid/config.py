@@ -419,10 +419,19 @@ def _no_duplicates(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bool =
 _SafeLoader.add_constructor("tag:yaml.org,2002:map", _no_duplicates)
 
 
+def safe_yaml(text: str):
+    """Parse YAML with the safe loader (plus duplicate-key rejection); never constructs objects."""
+    loader = _SafeLoader(text)
+    try:
+        return loader.get_single_data()
+    finally:
+        loader.dispose()
+
+
 def loads(text: str, source_path: str = "<config>") -> Config:
     """Parse YAML text (safe loader only) and validate it."""
     try:
-        data = yaml.load(text, Loader=_SafeLoader)  # noqa: S506 - a SafeLoader subclass
+        data = safe_yaml(text)
     except RecursionError:
         raise ConfigError(f"{source_path}: YAML: nested too deeply to be a config") from None
     except yaml.YAMLError as err:

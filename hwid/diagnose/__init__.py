@@ -59,7 +59,7 @@ def _model_from_yaml(path: Path):
     from hwid import config as C
     from hwid.model import from_config
     try:
-        data = yaml.load(path.read_text(encoding="utf-8"), Loader=C._SafeLoader)  # noqa: S506 - SafeLoader subclass
+        data = C.safe_yaml(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError) as err:
         raise HwidError(f"--model {path}: cannot read it ({type(err).__name__})") from None
     except yaml.YAMLError:
