@@ -526,6 +526,7 @@ def fit_harmonics(y, dt: float, omega: float, k_max: int, first_period: int = 0,
         t1 = np.linalg.solve(S.XtX[used[:h]].sum(0), S.Xty[used[:h]].sum(0))
         t2 = np.linalg.solve(S.XtX[used[h:]].sum(0), S.Xty[used[h:]].sum(0))
         vfull = np.concatenate([[dc_var], var, var]) * Pu * (1 / h + 1 / (Pu - h))
+        vfull = np.where(vfull > 0, vfull, np.finfo(float).tiny)      # a noise-free signal
         stat = float(np.sum((t1 - t2) ** 2 / vfull)) / m
         periodicity_p = float(stats.f.sf(stat, m, dof if np.isfinite(dof) else 1e9))
 

@@ -478,34 +478,19 @@ class SineView:
     truth_dc: float = 0.0
 
 
-def ls_harmonics(sig, dt: float, omega: float, start: int, k_max: int, chunk: int = 1 << 16):
-    """Least-squares ``dc + sum_k Im(C_k e^{j k omega t})`` fit of ``sig[start:]`` at the sample times
-    ``t = n dt`` over the whole periods after ``start`` (exact frequencies, no leakage whatever
-    ``T/dt``). Returns ``(C_k for k = 1..k_max, dc, se)`` with ``se`` the white-noise standard error
-    of each real component of ``C_k`` (eqs. 26a-e in least-squares form)."""
-    sig = np.asarray(sig, float)
-    T = 2 * np.pi / omega
-    P = int(np.floor((sig.size - start) * dt / T + 1e-9))
-    end = sig.size if P < 1 else min(sig.size, start + int(np.floor(P * T / dt + 1e-9)))
-    m = 2 * k_max + 1
-    XtX = np.zeros((m, m))
-    Xty = np.zeros(m)
-    yty = 0.0
-    ks = np.arange(1, k_max + 1)
-    for s in range(start, end, chunk):
-        e = min(s + chunk, end)
-        ph = np.outer(np.arange(s, e) * dt * omega, ks)
-        X = np.hstack([np.ones((e - s, 1)), np.cos(ph), np.sin(ph)])
-        y = sig[s:e]
-        XtX += X.T @ X
-        Xty += X.T @ y
-        yty += float(y @ y)
-    n = end - start
-    theta = np.linalg.lstsq(XtX, Xty, rcond=None)[0]
-    rss = max(yty - float(theta @ Xty), 0.0)
-    inv = np.linalg.pinv(XtX)
-    var = rss / max(n - m, 1) * 0.5 * (np.diag(inv)[1:k_max + 1] + np.diag(inv)[k_max + 1:])
-    return theta[k_max + 1:] + 1j * theta[1:k_max + 1], float(theta[0]), np.sqrt(var)
+def ls_harmonics(sig, dt: float, omega: float, start: int, k_max: int):
+    """Least-squares ``dc + sum_k Im(C_k e^{j k omega t})`` fit of ``sig`` over the whole periods from
+    the period that begins at sample ``start`` on (exact frequencies, no leakage whatever ``T/dt``):
+    stage 2's :func:`hwid.identify.harmonics.fit_harmonics` with white-noise standard errors and no
+    further periods dropped. Returns ``(C_k for k = 1..k_max, dc, se)``, ``se`` the standard error of
+    each real component of ``C_k`` (eqs. 26a-e in least-squares form); NaN without a whole period."""
+    from hwid.identify.harmonics import fit_harmonics
+    first = int(round(start * dt * omega / (2 * np.pi)))
+    try:
+        f = fit_harmonics(sig, dt, omega, k_max, first_period=first, noise_model="white", steady_alpha=0.0)
+    except ValueError:
+        return np.full(k_max, np.nan + 0j), float("nan"), np.full(k_max, np.nan)
+    return np.asarray(f.coef), float(f.dc), np.sqrt(np.asarray(f.var))
 
 
 def _harmonics_for(lin, i: int, omega: float):
