@@ -179,6 +179,39 @@ def test_asymmetric_backlash_zero_in_G_even_h():
     assert res.w_range[0] < -0.89 and res.w_range[1] > 0.8
 
 
+# The paper's plant with its non-monotone h (h' = 0 at |w| = 0.50, 1.01) on levels that are not
+# Table 1's: for some noise draws the closed form's border points lead the joint fit into a local
+# minimum (d+ = 0.66-0.73, chi2 ~ 1e5); the profiled grid over the borders finds the global one.
+NONMONO = """
+name: nonmonotone
+seed: 6
+sampling: {dt: 0.05}
+plant:
+  kind: hammerstein_wiener
+  input_nonlinearity: {type: backlash, slope_up: 1.0, slope_down: 1.0, d_plus: 0.5, d_minus: -0.5}
+  linear: {num: [0.2], den: [1.0, 0.7, 0.1]}
+  output_nonlinearity: {polynomial: [0, 0.25, 0, -0.42, 0, 0.2]}
+  noise: {std: 0.01}
+protocols:
+  staircase:
+    levels_up: [-1.4, -1.1111, -0.8222, -0.5333, -0.2444, 0.0444, 0.3333, 0.6222, 0.9111, 1.2]
+    levels_down: [1.2, 0.94, 0.68, 0.42, 0.16, -0.1, -0.36, -0.62, -0.88, -1.14, -1.4]
+    hold: 30.0
+"""
+
+
+@pytest.mark.parametrize("seed", [6, 7])
+def test_local_minimum_of_the_joint_fit_is_escaped(seed):
+    cfg = config.loads(NONMONO.replace("seed: 6", f"seed: {seed}"))
+    res, _ = identify_nonlinear(cfg)
+    truth = from_config(cfg.plant).normalised()
+    assert res.type == "backlash" and res.degree == 5
+    assert_borders_inside(res, truth.input)
+    # the fit describes the data (chi2 of order its 13 dof; the unsettled last levels add some),
+    # not the 1e5 of the local minimum
+    assert res.fit["chi2"] < 200
+
+
 def test_backlash_inverse():
     cfg = config.loads(BINV)
     res, _ = identify_nonlinear(cfg)

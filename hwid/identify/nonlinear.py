@@ -720,6 +720,55 @@ def _nls_cov(kind: str, theta: np.ndarray, data: _Data) -> np.ndarray:
     return np.linalg.pinv(J.T @ J, rcond=1e-13)
 
 
+def _grid_V(kind: str, data: _Data, n_d: int = 41, n_gap: int = 24, n_s: int = 9):
+    """The borders of :func:`_grid_starts`' grid ``(G, 3)`` and the steady states ``V`` they
+    give ``(G, n)`` (independent of the degree, so computed once per type)."""
+    U = np.concatenate([data.all_up, data.all_down])
+    lo, hi = float(U.min()), float(U.max())
+    W = max(hi - lo, 1e-12)
+    dp, gap, sd = np.meshgrid(np.linspace(lo - 0.5 * W, hi + 0.5 * W, n_d), np.geomspace(1e-3 * W, 1.5 * W, n_gap),
+                              np.geomspace(1 / 3, 3.0, n_s), indexing="ij")
+    P = np.column_stack([dp.ravel(), sd.ravel(), (dp - gap).ravel()])
+    V = np.stack([_internal(kind, a, b, c, data) for a, b, c in P])
+    return P, V, 1.5 * W / (n_d - 1)
+
+
+def _grid_starts(kind: str, p: int, data: _Data, grid=None, keep: int = 3) -> list[np.ndarray]:
+    """Global starting points for the joint fit: a grid over the borders ``(d^+, S^d, d^+ - d^-)``
+    with ``h_bar``'s coefficients profiled out (for fixed borders the steady states ``V_j`` are
+    known and ``X_j = h_bar(V_j)`` is linear in ``c_1..c_p``: weighted least squares), the ``keep``
+    best by chi^2, apart from each other by more than a grid step.
+
+    Used when the closed form's starts leave a fit that does not describe the data (a local
+    minimum of the joint chi^2: e.g. a non-monotone ``h_bar`` whose border points the closed form
+    assigns to the wrong root). ``d^+`` spans the levels' range widened by half its width, the gap
+    up to 1.5 times that width, ``S^d`` a factor 3 either way of 1."""
+    P, V, step = grid if grid is not None else _grid_V(kind, data)
+    w = 1.0 / data.se
+    A = (V[:, :, None] ** np.arange(1, p + 1)) * w[None, :, None]          # (G, n, p)
+    b = data.X * w
+    AtA = np.einsum("gni,gnj->gij", A, A) + 1e-12 * np.eye(p)
+    Atb = np.einsum("gni,n->gi", A, b)
+    with np.errstate(all="ignore"):
+        try:
+            C = np.linalg.solve(AtA, Atb[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            C = np.stack([np.linalg.lstsq(a, b, rcond=None)[0] for a in A])
+        r = b[None, :] - np.einsum("gni,gi->gn", A, C)
+        chi2 = np.einsum("gn,gn->g", r, r)
+    chi2 = np.where(np.isfinite(chi2), chi2, np.inf)
+    out: list[np.ndarray] = []
+    for g in np.argsort(chi2):
+        if not np.isfinite(chi2[g]):
+            break
+        th = np.concatenate([C[g], P[g]])
+        if all(abs(th[-3] - o[-3]) > step or abs(th[-1] - o[-1]) > step for o in out):
+            out.append(th)
+        if len(out) >= keep:
+            break
+    return out
+
+
 # ------------------------------------------------------------------------------- the estimator
 
 @dataclass
@@ -881,6 +930,7 @@ class NonlinearEstimator:
         kinds = list(TYPES) if self.input_type == "auto" else [self.input_type]
         n = data.X.size
         table: list[_Candidate] = []
+        grids: dict = {}
         for kind in kinds:
             for p in degrees:
                 try:
@@ -898,6 +948,12 @@ class NonlinearEstimator:
                     table.append(_Candidate(kind, p, theta, chi2, crit, best, amb, ja_p, jd_p))
                 else:
                     fits = [_nls(kind, r.theta, data) for r in routes[:4]]
+                    dof_p = n - (p + 3)
+                    if dof_p > 0 and min(f[1] for f in fits) > stats.chi2.isf(1e-3, dof_p):
+                        # the closed form's starts leave a misfit: look for a better minimum
+                        if kind not in grids:
+                            grids[kind] = _grid_V(kind, data)
+                        fits += [_nls(kind, th, data) for th in _grid_starts(kind, p, data, grids[kind])]
                     i, amb = _pick(kind, fits, data)
                     theta, chi2 = fits[i]
                     table.append(_Candidate(kind, p, theta, chi2, chi2 + (p + 3) * math.log(n),
