@@ -13,7 +13,10 @@ time domain, so this module fits one:
   uncertainties;
 * orders ``1 <= n <= max_order``, ``0 <= m < n`` compared by the small-sample corrected Akaike
   criterion AICc (``chi^2 + 2k + 2k(k+1)/(2 N_freq - k - 1)``; BIC's ``k ln(2 N_freq)`` over-fits with
-  the handful of frequencies of Table 2), among stable fits that leave a degree of freedom;
+  the handful of frequencies of Table 2), among stable fits that leave a degree of freedom and
+  have no pole or zero a decade below the lowest frequency (which the data cannot place: such a
+  fit is a near-cancelling pole-zero pair at ``s ~ 0``, ``1e-8`` apart, that AICc can prefer by a
+  fraction of a unit);
 * poles with intervals by the delta method (``dp = -sum_i p^i da_i / A'(p)``).
 """
 from __future__ import annotations
@@ -224,15 +227,22 @@ def fit_rational(omega, G, cov, gain=None, phase=None, max_order: int = 4, fit_d
             continue
         x, chi2, J = r
         poles = _poles_scaled(x[:n]) * w_ref
+        zeros = _poles_scaled(x[n:n + m]) * w_ref if m else np.zeros(0)
         stable = bool(np.all(poles.real < 0)) and (not fit_delay or x[n + m] >= 0)
+        # a pole or zero a decade below the lowest frequency is not identified by the data: with
+        # G(0) = 1 it is a near-cancelling pair (or a gain step) far below the band, an artefact
+        # of an order too high that a simulation would turn into a slow creep
+        slow = bool(np.any(np.abs(np.concatenate([poles, zeros])) < w.min() / 10))
         crit = chi2 + 2 * k + 2 * k * (k + 1) / (N2 - k - 1) if N2 - k - 1 > 0 else np.inf   # AICc
-        cands.append({"n": n, "m": m, "chi2": chi2, "aicc": float(crit), "stable": stable})
+        cands.append({"n": n, "m": m, "chi2": chi2, "aicc": float(crit), "stable": stable,
+                      "below_band": slow})
         if stable:
-            fits.append((crit, n, m, x, chi2, J))
+            fits.append((crit, n, m, x, chi2, J, slow))
     if not fits:
         raise HwidError("no stable rational model fits the frequency response (try a lower max_order "
                         "or more frequencies)")
-    crit, n, m, x, chi2, J = min(fits, key=lambda f: f[0])
+    inband = [f for f in fits if not f[6]]
+    crit, n, m, x, chi2, J, _ = min(inband or fits, key=lambda f: f[0])
     try:
         cov_x = np.linalg.inv(J.T @ J)
     except np.linalg.LinAlgError:
