@@ -125,12 +125,14 @@ def load_model(spec, cfg=None, plant=None, out_dir=None, echo=print):
 
 # ------------------------------------------------------------------------------------------ diagnose
 
-def _scale(d, model, exps, sim_fit, sim_val) -> Scale:
+def _scale(d, model, exps, sim_fit, sim_val, records=None) -> Scale:
     us = np.concatenate([e.u for e in exps])
     xs = np.concatenate(list(sim_fit.x) + list(sim_val.x))
     vs = np.concatenate(list(sim_fit.v) + list(sim_val.v))
+    ys = np.concatenate([np.asarray(r.y, float)[e.mask] for e, r in zip(exps, records)]) if records else xs
     return Scale(d.dt, float(us.min()), float(us.max()), float(xs.min()), float(xs.max()),
-                 float(np.max(np.abs(vs))), d.settle_s, d.omega_c, float(max(e.n for e in exps) * d.dt))
+                 float(np.max(np.abs(vs))), d.settle_s, d.omega_c, float(max(e.n for e in exps) * d.dt),
+                 float(ys.min()), float(ys.max()))
 
 
 def identification_error(model, records, dt: float, settle_s: float, sigma: float) -> dict:
@@ -221,7 +223,7 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
     t0 = time.perf_counter()
     sim_fit = ModelSim(sim_model, d.dt, [exps[i].u for i in fit_idx])
     sim_val = ModelSim(sim_model, d.dt, [exps[i].u for i in val_idx])
-    sc = _scale(d, sim_model, exps, sim_fit, sim_val)
+    sc = _scale(d, sim_model, exps, sim_fit, sim_val, records)
 
     # noise floor from the repeats
     by_name = {e.name: (e, r) for e, r in zip(exps, records)}
@@ -237,7 +239,8 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
     # alone; the test asks whether the model with h, F and G re-estimated leaves more than noise
     fitter = R.EffectFitter(sim_fit, [records[i].y for i in fit_idx], [exps[i].mask for i in fit_idx],
                             sim_val, y_val, m_val, [exps[i].name for i in val_idx], sc, nf.sigma, nf.kappa,
-                            refit_h=identified, refit_g=identified)
+                            refit_h=identified, refit_g=identified,
+                            band=_sine_band(cfg) if identified else None)
     gap_ref = fitter.gap_ref
     id_err = identification_error(sim_model, origin.pop("records", []), d.dt, d.settle_s, nf.sigma) \
         if identified else None
@@ -248,6 +251,9 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
         # the noise). With h, F and G re-estimated on the diagnosis's fit experiments the model
         # leaves noise alone on a plain rig, so the test is the same as for a trusted simulator
     test = Gp.gap_test(gap_ref, n_val, nf)
+    for wn, z in getattr(fitter, "modes", []):
+        echo(f"the refit G has a lightly damped mode outside the identified band (omega_n = {wn:.4g} rad/s, "
+             f"zeta = {z:.3g}): taken out of the baseline, left to the resonance effect")
     echo(f"gap before {gap_before:.4g}" + (f" ({'h, F and G' if fitter.refit_g else 'h'} re-estimated: {gap_ref:.4g})"
                                              if fitter.refit_h else "")
          + f", noise floor {nf.sigma:.4g} (power ratio {test.ratio:.3g}, z {test.z:.1f}): "
@@ -309,7 +315,9 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
         "verdict": {"effect": name, "block": block, "explained_fraction": float(ef)},
         "gap_before": float(gap_before), "gap_after": float(gap_after), "noise_floor": float(nf.sigma),
         "gap_model_refit": float(gap_ref),
-        "model_refit": fitter.model_dict(fitter.g_p) if fitter.refit_g else None,
+        "model_refit": ({**fitter.model_dict(fitter.g_p),
+                         "modes_taken_out": [{"omega_n": w, "zeta": z} for w, z in fitter.modes]}
+                        if fitter.refit_g else None),
         "where": where,
         "candidates": [{**c.to_dict(), "eligible": bool(c.effect != "drift" or drift_ok)} for c in cands],
         "test": {**test.to_dict(), "identification_error": id_err, "by_effect": by_effect},
@@ -329,6 +337,14 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
     echo(f"verdict: {name} (block {block}, explained {ef:.2f}); gap {gap_before:.4g} -> {gap_after:.4g}, "
          f"noise floor {nf.sigma:.4g}")
     return summary
+
+
+def _sine_band(cfg):
+    """``(omega_min, omega_max)`` of the sines that identified G (stage 2), rad/s."""
+    sn = cfg.protocols.sine
+    if sn is None or not sn.frequencies:
+        return None
+    return float(min(sn.frequencies)), float(max(sn.frequencies))
 
 
 def _plant_calls(plant) -> int:

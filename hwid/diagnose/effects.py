@@ -53,6 +53,8 @@ class Scale:
         Bandwidth of G (-3 dB), rad/s.
     duration_s : float
         Longest experiment, s.
+    y_obs_min, y_obs_max : float
+        Range of the plant's measured output over the scored samples (NaN: unknown).
     """
 
     dt: float
@@ -64,6 +66,8 @@ class Scale:
     settle_s: float
     omega_c: float
     duration_s: float
+    y_obs_min: float = float("nan")
+    y_obs_max: float = float("nan")
 
     @property
     def u_width(self) -> float:
@@ -446,11 +450,21 @@ class SensorSaturation(Effect):
 
     def bounds(self, sc):
         c, R = 0.5 * (sc.y_min + sc.y_max), sc.y_width
-        return np.array([sc.y_min - 0.05 * R, c]), np.array([c, sc.y_max + 0.05 * R])
+        lo, hi = sc.y_min - 0.05 * R, sc.y_max + 0.05 * R
+        if np.isfinite(sc.y_obs_min) and np.isfinite(sc.y_obs_max):
+            lo, hi = min(lo, sc.y_obs_min - 0.05 * R), max(hi, sc.y_obs_max + 0.05 * R)
+        return np.array([lo, c]), np.array([c, hi])
 
     def starts(self, sc):
+        """A grid over both limits, and the measured extremes: a clipping sensor reads its limits
+        exactly, so the samples pile up at the largest and smallest values measured (the limits'
+        maximum-likelihood estimates when the clip is reached), each with the other limit out of
+        reach."""
         lo, hi = self.bounds(sc)
-        return _grid(np.linspace(lo[0], lo[1], 7)[:-1], np.linspace(hi[0], hi[1], 7)[1:])
+        out = _grid(np.linspace(lo[0], lo[1], 7)[:-1], np.linspace(hi[0], hi[1], 7)[1:])
+        if np.isfinite(sc.y_obs_min) and np.isfinite(sc.y_obs_max):
+            out += _grid([sc.y_obs_min, lo[0]], [sc.y_obs_max, hi[1]])
+        return out
 
     post_linear = False
 

@@ -105,8 +105,12 @@ class EffectFitter:
     # the validation gap can tell apart
     JOINT_TOL = {"ftol": 1e-6, "xtol": 1e-6, "gtol": 1e-6}
 
+    # a complex pole pair of G is a lightly damped mode below this damping ratio (a resonant peak
+    # of |G| of at least 2, +6 dB)
+    ZETA_LIGHT = 0.25
+
     def __init__(self, sim_fit, y_fit, m_fit, sim_val, y_val, m_val, names_val, scale, sigma, kappa,
-                 max_samples: int = 60000, refit_h: bool = False, refit_g: bool = False):
+                 max_samples: int = 60000, refit_h: bool = False, refit_g: bool = False, band=None):
         self.sf, self.sv = sim_fit, sim_val
         self.yf, self.yv = [np.asarray(y, float) for y in y_fit], [np.asarray(y, float) for y in y_val]
         self.mf, self.mv = [np.asarray(m, bool) for m in m_fit], [np.asarray(m, bool) for m in m_val]
@@ -133,8 +137,10 @@ class EffectFitter:
             self.degree = max(len(h.coefficients) - 1, 1)
             wf = np.concatenate([w[m] for w, m in zip(sim_fit.w, self.mf)])
             self._w_c, self._w_r = 0.5 * (wf.max() + wf.min()), max(0.5 * (wf.max() - wf.min()), 1e-12)
+            self.modes: list[tuple[float, float]] = []
             if self.refit_g:
                 self.g_p = self._fit_baseline_g()
+                self._strip_modes(band)
             self.baseline_val = self._refit_predict(None, None, "val")
             self.baseline_fit = self._refit_predict(None, None, "fit")
             self.gap_ref = rms(np.concatenate([(y - x)[m] for y, x, m in zip(self.yv, self.baseline_val, self.mv)]))
@@ -165,12 +171,24 @@ class EffectFitter:
         b = np.concatenate([y[m][::st] for y, m in zip(self.yf, self.mf)])
         c = _lsq(A, b)
         if eff is not None and not eff.post_linear:
-            for _ in range(2):
+            # least squares of y - clip(h): an active set, the samples whose prediction the output
+            # stage leaves as it is (a clipped sample whose prediction falls short of the limit
+            # pulls h up to it; one beyond it costs nothing), iterated to a fixed set. Started
+            # from h fitted on the samples the sensor did not clip (strictly inside the limits: a
+            # clipping sensor reads its limit), not on all of them (that h bends to the limit and
+            # is a fixed point of the iteration too)
+            lo, hi = eff.post(np.array([-np.inf, np.inf]), theta, self.sf.dt)
+            inside = (b > lo) & (b < hi)
+            if inside.sum() > 2 * A.shape[1]:
+                c = _lsq(A[inside], b[inside])
+            prev = None
+            for _ in range(8):
                 p = A @ c
                 sel = np.abs(eff.post(p, theta, self.sf.dt) - p) <= 0.0
-                if sel.sum() <= 2 * A.shape[1]:
+                if sel.sum() <= 2 * A.shape[1] or (prev is not None and np.array_equal(sel, prev)):
                     break
                 c = _lsq(A[sel], b[sel])
+                prev = sel
         return c
 
     def _refit_predict(self, eff, theta, which) -> list[np.ndarray]:
@@ -272,6 +290,50 @@ class EffectFitter:
         r0 = fun(x0)
         return self._from_unit(sol.x, lo, hi, logs) if 2 * sol.cost < float(r0 @ r0) else np.zeros(self.n_g)
 
+    def _strip_modes(self, band) -> None:
+        """Take lightly damped modes outside the identified band out of the refit G.
+
+        A resonance of the plant is inside the paper's structure (G is any linear system): stage 2
+        may already have put a lightly damped pair into G from the harmonics, or the refit puts one
+        there, and then no effect is left to explain. The catalogue's ``resonance`` is exactly such
+        a mode outside the band the sines identified (``band = (omega_min, omega_max)``), so when
+        the refit G has a complex pair with ``zeta < ZETA_LIGHT`` and ``omega_n`` outside the band,
+        the baseline becomes that G without the pair (unit static gain, so ``G(0)`` is kept), F and
+        G refit from there, and the pair is a starting point of the ``resonance`` effect, which
+        must then earn it back on the validation data like any other effect."""
+        if band is None:
+            return
+        lo, hi = float(min(band)), float(max(band))
+        F, G = self.input_nl(self.g_p), self.linear(self.g_p)
+        den = np.asarray(G.den, float)
+        if den.size < 3:
+            return
+        roots = np.roots(den)
+        keep, modes = [], []
+        for r in roots:
+            if r.imag < -1e-12 * abs(r):
+                continue
+            wn = abs(r)
+            if r.imag > 1e-12 * wn and wn > 0:
+                z = -r.real / wn
+                if z < self.ZETA_LIGHT and not lo <= wn <= hi:
+                    modes.append((float(wn), float(max(z, 1e-3))))
+                    continue
+                keep += [r, np.conj(r)]
+            else:
+                keep.append(r)
+        if not modes:
+            return
+        den_red = np.real(np.poly(keep)) if keep else np.array([1.0])
+        den_red = den_red / den_red[-1]
+        num = np.trim_zeros(np.asarray(G.num, float), "f")
+        if num.size > den_red.size:      # the pair cannot go without making G improper
+            return
+        from hwid.blocks.linear import LinearBlock
+        self.modes = modes
+        self._init_g(F, LinearBlock(tuple(num.tolist()), tuple(den_red.tolist()), G.delay))
+        self.g_p = self._fit_baseline_g()
+
     def _with_x(self, sim, xs):
         new = object.__new__(type(sim))
         new.__dict__.update(sim.__dict__)
@@ -319,6 +381,8 @@ class EffectFitter:
         lo, hi = eff.bounds(self.scale)
         logs = eff.log_params()
         starts = eff.starts(self.scale)
+        if eff.name == "resonance" and getattr(self, "modes", None):    # the modes taken out of G
+            starts = list(starts) + [np.array(m, float) for m in self.modes]
         if self.refit_g:   # G's parameters after the effect's, starting from the baseline's G
             glo, ghi = self._g_bounds()
             lo, hi = np.r_[lo, glo], np.r_[hi, ghi]
