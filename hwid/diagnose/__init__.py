@@ -305,7 +305,8 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
         "trend": "none (gap is noise)",
         "regions": regions_before,
         "repeatability": {"slow_rms": nf.slow_rms, "slow_z": nf.slow_z, "repeats_differ": bool(nf.slow_z > 10),
-                          "difference_follows_output": add["output_share"], "additive": add["additive"]},
+                          "difference_follows_output": add["output_share"],
+                          "fast_difference_follows_output": add["fast_share"], "additive": add["additive"]},
     }
     if test.significant:
         tr = Gp.trend(val_exps, res_before, nf.sigma, d.dt)

@@ -218,6 +218,11 @@ class Effect:
         """Which parameters are fitted on a log scale."""
         return (False,) * len(self.params)
 
+    def at_defining_bound(self, theta) -> bool:
+        """Whether the fit pressed against a bound that defines the effect (a "lightly damped"
+        mode at the largest damping allowed): it then stands in for something else."""
+        return False
+
     # h re-estimated with the effect: ``y = post(h(pre(...)))``; ``pre`` is the signal entering h
     # (simulated with h = identity), ``post`` the output stage after h (identity by default).
     def pre(self, sim_w: ModelSim, theta, i: int) -> np.ndarray:
@@ -376,8 +381,15 @@ class TimeDelay(Effect):
         return sim.from_v(sim.v[i], LinearBlock(G.num, G.den, G.delay + max(float(theta[0]), 0.0)))
 
 
+# a complex pole pair is a lightly damped mode below this damping ratio (a resonant peak of |G| of
+# at least 1.75, +4.9 dB); better damped, a second-order factor is a low-pass that would stand in
+# for a delay or a lag, not a resonance
+ZETA_LIGHT = 0.3
+
+
 class Resonance(Effect):
-    """``G(s) wn^2/(s^2 + 2 zeta wn s + wn^2)``: a lightly damped mode, unit static gain."""
+    """``G(s) wn^2/(s^2 + 2 zeta wn s + wn^2)``: a lightly damped mode (``zeta <= ZETA_LIGHT``),
+    unit static gain."""
 
     def __init__(self):
         super().__init__("resonance", "linear", ("omega_n", "zeta"), "a lightly damped mode of G")
@@ -387,11 +399,14 @@ class Resonance(Effect):
 
     def bounds(self, sc):
         nyq = np.pi / sc.dt
-        return np.array([0.3 * sc.omega_c, 0.005]), np.array([0.5 * nyq, 0.7])
+        return np.array([0.3 * sc.omega_c, 0.005]), np.array([0.5 * nyq, ZETA_LIGHT])
 
     def starts(self, sc):
         lo, hi = self.bounds(sc)
-        return _grid(np.geomspace(lo[0], hi[0], 16), [0.03, 0.1, 0.3])
+        return _grid(np.geomspace(lo[0], hi[0], 16), [0.03, 0.1, ZETA_LIGHT])
+
+    def at_defining_bound(self, theta) -> bool:
+        return float(theta[1]) >= 0.97 * ZETA_LIGHT
 
     def simulate(self, sim, theta, i):
         G = sim.model.linear

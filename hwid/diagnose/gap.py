@@ -298,9 +298,15 @@ def drift_is_additive(pairs, models, width: int, sigma: float) -> dict:
     For each repeated pair, ``d = y_a - y_b`` is regressed on a cubic in time (an additive drift is
     smooth in time whatever the input does), then also on ``x`` and ``x t`` (``x`` the model output,
     centred). ``output_share`` is the share of the excess (above noise) residual of the first fit
-    that the output terms remove; a drift is ``additive`` when it is below one half.
+    that the output terms remove. A cubic cannot follow every wander of a drift over a long record,
+    and what it leaves can line up with a slow part of ``x`` by chance; so the same is asked of the
+    fast parts, ``d`` and ``x`` less their moving averages over ``2 width`` samples (a drift has
+    hardly any fast part; a gain that wanders multiplies every step of ``x``): ``fast_share``.
+    The difference follows the output (not ``additive``) when both shares are at least one half.
     """
-    drop = excess = 0.0
+    from scipy.ndimage import uniform_filter1d
+    drop = excess = drop_f = excess_f = 0.0
+    W = max(2 * int(width), 3)
     for (ya, yb, mask), x in zip(pairs, models):
         m = np.asarray(mask, bool)
         d = (np.asarray(ya, float) - np.asarray(yb, float))[m]
@@ -315,5 +321,14 @@ def drift_is_additive(pairs, models, width: int, sigma: float) -> dict:
         rb = d - B @ np.linalg.lstsq(B, d, rcond=None)[0]
         drop += float(ra @ ra - rb @ rb)
         excess += max(float(ra @ ra) - 2 * sigma ** 2 * d.size, 0.0)
+        if d.size > 2 * W:
+            rf = d - uniform_filter1d(d, W, mode="nearest")
+            xf = xx - uniform_filter1d(xx, W, mode="nearest")
+            Bf = np.column_stack([xf, xf * t])
+            rr = rf - Bf @ np.linalg.lstsq(Bf, rf, rcond=None)[0]
+            drop_f += float(rf @ rf - rr @ rr)
+            excess_f += max(float(rf @ rf) - 2 * sigma ** 2 * d.size * (1 - 1 / W), 0.0)
     share = drop / excess if excess > 0 else 0.0
-    return {"output_share": float(min(share, 1.0)), "additive": bool(share < 0.5)}
+    fast = drop_f / excess_f if excess_f > 0 else 0.0
+    return {"output_share": float(min(share, 1.0)), "fast_share": float(min(fast, 1.0)),
+            "additive": bool(share < 0.5 or fast < 0.5)}

@@ -40,12 +40,13 @@ class Candidate:
     per_experiment: dict = field(default_factory=dict)
     predictions: list = field(default_factory=list, repr=False)   # validation model outputs
     model: dict | None = None      # F and G re-estimated with the effect (identified models)
+    at_bound: bool = False         # pressed against a bound that defines the effect
 
     def to_dict(self) -> dict:
         d = {"effect": self.effect, "params": self.params, "gap_after": self.gap_after,
              "explained_fraction": self.explained_fraction, "score": self.score,
              "block": self.block, "gap_fit": self.gap_fit, "n_params": self.k,
-             "per_experiment": self.per_experiment}
+             "per_experiment": self.per_experiment, "at_bound": self.at_bound}
         if self.model is not None:
             d["model"] = self.model
         return d
@@ -105,9 +106,7 @@ class EffectFitter:
     # the validation gap can tell apart
     JOINT_TOL = {"ftol": 1e-6, "xtol": 1e-6, "gtol": 1e-6}
 
-    # a complex pole pair of G is a lightly damped mode below this damping ratio (a resonant peak
-    # of |G| of at least 2, +6 dB)
-    ZETA_LIGHT = 0.25
+    ZETA_LIGHT = E.ZETA_LIGHT       # a pole pair of G below this damping ratio is a lightly damped mode
 
     def __init__(self, sim_fit, y_fit, m_fit, sim_val, y_val, m_val, names_val, scale, sigma, kappa,
                  max_samples: int = 60000, refit_h: bool = False, refit_g: bool = False, band=None):
@@ -463,6 +462,7 @@ class EffectFitter:
         c = Candidate(eff.name, eff.block, params, gf, ga, ef, score, float(k), per, preds)
         if self.refit_g:
             c.model = self.model_dict(self.g_p if eff.disturbance else self._split(eff, theta)[1])
+        c.at_bound = bool(eff.at_defining_bound(theta))
         return c
 
     def model_dict(self, m) -> dict:
@@ -524,13 +524,15 @@ def fit_all(fitter: EffectFitter, effects: dict[str, E.Effect], echo=None) -> li
 
 def rank(cands: list[Candidate], tie: float = 0.03) -> list[Candidate]:
     """By explained fraction; candidates within ``tie`` of each other by score (fewer parameters win
-    when they explain as much)."""
+    when they explain as much), after those whose fit pressed against a bound that defines them
+    (a resonance at the largest damping a lightly damped mode may have explains as a plain
+    low-pass would: a delay or a lag that explains as much is the better name)."""
     cands = sorted(cands, key=lambda c: -c.explained_fraction)
     out: list[Candidate] = []
     while cands:
         top = cands[0].explained_fraction
         grp = [c for c in cands if c.explained_fraction >= top - tie]
-        grp.sort(key=lambda c: -c.score)
+        grp.sort(key=lambda c: (c.at_bound, -c.score))
         out += grp
         cands = [c for c in cands if c not in grp]
     return out
