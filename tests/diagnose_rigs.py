@@ -19,7 +19,8 @@ BASE = {"kind": "hammerstein_wiener",
         "output_nonlinearity": {"polynomial": [0, 1.0, 0, -0.1]},
         "noise": {"std": 0.01}}
 NOISE = 0.01
-TRUTH = {"sensor_lag": {"tau_s": 1.5}, "rate_limit": {"rate": 0.4}, "input_deadzone": {"delta": 0.2}}
+TRUTH = {"sensor_lag": {"tau_s": 1.5}, "rate_limit": {"rate": 0.4}, "input_deadzone": {"delta": 0.2},
+         "sensor_saturation": {"y_lo": -0.55, "y_hi": 0.55}, "resonance": {"omega_n": 4.0, "zeta": 0.05}}
 
 
 class _Rig:
@@ -29,16 +30,20 @@ class _Rig:
         self.drift = 0.0
         self.rng = np.random.default_rng(np.random.SeedSequence(seed))
 
-    def base(self, u, dt, out_play: float = 0.0):
+    def base(self, u, dt, out_play: float = 0.0, mode=None):
         v = np.empty_like(u)
         g = self.gear
         for i, ui in enumerate(u):
             g = min(max(g, ui - 0.3), ui + 0.3)
             v[i] = g
         self.gear = g
-        b, a, _ = signal.cont2discrete(([2.0], [1.0, 3.0, 2.0]), dt, method="zoh")[:3]
+        num, den = [2.0], [1.0, 3.0, 2.0]
+        if mode is not None:        # a lightly damped mode wn^2 / (s^2 + 2 zeta wn s + wn^2)
+            wn, z = mode
+            num, den = np.polymul(num, [wn * wn]), np.polymul(den, [1.0, 2 * z * wn, wn * wn])
+        b, a, _ = signal.cont2discrete((num, den), dt, method="zoh")[:3]
         b = np.ravel(b)
-        zi = signal.lfiltic(b, a, y=[v[0]] * 2, x=[v[0]] * 2)
+        zi = signal.lfiltic(b, a, y=[v[0]] * (len(a) - 1), x=[v[0]] * (len(b) - 1))
         w = signal.lfilter(b, a, v, zi=zi)[0]
         return w - 0.1 * w ** 3
 
@@ -102,3 +107,19 @@ def output_friction(u, dt):
         p = min(max(p, xi - 0.04), xi + 0.04)
         y[i] = p
     return y + r.noise(u.size)
+
+
+def sensor_saturation(u, dt):
+    """The sensor reads y clipped to [-0.55, 0.55] (h reaches +-0.67 on the working range)."""
+    r = _rig("sensor_saturation")
+    u = np.asarray(u, float)
+    t = TRUTH["sensor_saturation"]
+    return np.clip(r.base(u, dt) + r.noise(u.size), t["y_lo"], t["y_hi"])
+
+
+def resonance(u, dt):
+    """G with a lightly damped mode at 4 rad/s (zeta 0.05), above the sines' band (0.3-3 rad/s)."""
+    r = _rig("resonance")
+    u = np.asarray(u, float)
+    t = TRUTH["resonance"]
+    return r.base(u, dt, mode=(t["omega_n"], t["zeta"])) + r.noise(u.size)

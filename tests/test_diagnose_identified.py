@@ -66,3 +66,28 @@ def test_identified_plain_plant_is_none(tmp_path_factory):
     s = _run(tmp_path_factory, "plain")
     assert s["verdict"] == {"effect": "none", "block": "none", "explained_fraction": 0.0}
     assert not s["test"]["significant"]
+
+
+def test_identified_sensor_saturation_named_with_its_limits(tmp_path_factory):
+    """The identification bends h towards the clip; h re-estimated by censored least squares
+    (samples the sensor clipped only bound it) gives the limits back to within noise."""
+    s = _run(tmp_path_factory, "sensor_saturation")
+    assert s["verdict"]["effect"] == "sensor_saturation" and s["verdict"]["block"] == "output"
+    top = s["candidates"][0]
+    for key in ("y_lo", "y_hi"):
+        assert abs(top["params"][key] - R.TRUTH["sensor_saturation"][key]) < 0.01
+    assert s["verdict"]["explained_fraction"] >= 0.5
+    assert s["gap_after"] < 1.5 * s["noise_floor"]
+
+
+def test_identified_resonance_outside_the_band(tmp_path_factory):
+    """A mode at 8 rad/s, above the sines (0.3-3 rad/s): whether stage 2 or the refit put it into
+    G, it is taken out of the baseline and must come back as the resonance effect."""
+    s = _run(tmp_path_factory, "resonance")
+    assert s["verdict"]["effect"] == "resonance" and s["verdict"]["block"] == "linear"
+    top = s["candidates"][0]
+    truth = R.TRUTH["resonance"]
+    assert abs(top["params"]["omega_n"] / truth["omega_n"] - 1) < 0.05
+    assert 0.5 * truth["zeta"] < top["params"]["zeta"] < 2 * truth["zeta"]
+    assert s["model_refit"]["modes_taken_out"]
+    assert s["gap_after"] < 1.5 * s["noise_floor"]
