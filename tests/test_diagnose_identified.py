@@ -81,7 +81,7 @@ def test_identified_sensor_saturation_named_with_its_limits(tmp_path_factory):
 
 
 def test_identified_resonance_outside_the_band(tmp_path_factory):
-    """A mode at 8 rad/s, above the sines (0.3-3 rad/s): whether stage 2 or the refit put it into
+    """A mode at 4 rad/s (5x the bandwidth of G), above the sines (0.3-3 rad/s): whether stage 2 or the refit put it into
     G, it is taken out of the baseline and must come back as the resonance effect."""
     s = _run(tmp_path_factory, "resonance")
     assert s["verdict"]["effect"] == "resonance" and s["verdict"]["block"] == "linear"
