@@ -228,7 +228,7 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
     # noise floor from the repeats
     by_name = {e.name: (e, r) for e, r in zip(exps, records)}
     pairs = [(r.y, by_name[e.repeat_of][1].y, e.mask) for e, r in zip(exps, records) if e.repeat_of]
-    nf = Gp.noise_floor(pairs, int(round(2 * d.settle_s / d.dt)), sc.y_width)
+    nf = Gp.noise_floor(pairs, int(round(2 * d.settle_s / d.dt)), sc.y_obs_width)
 
     y_val = [records[i].y for i in val_idx]
     m_val = [exps[i].mask for i in val_idx]

@@ -77,6 +77,12 @@ class Scale:
     def y_width(self) -> float:
         return max(self.y_max - self.y_min, 1e-12)
 
+    @property
+    def y_obs_width(self) -> float:
+        """Range of the measured output (the model's when unknown)."""
+        w = self.y_obs_max - self.y_obs_min
+        return max(w, 1e-12) if np.isfinite(w) else self.y_width
+
 
 # ------------------------------------------------------------------------------ signal primitives
 

@@ -771,6 +771,15 @@ def _grid_starts(kind: str, p: int, data: _Data, grid=None, keep: int = 3) -> li
 
 # ------------------------------------------------------------------------------- the estimator
 
+def _overdispersion(cands, n: int) -> Optional[float]:
+    """``chi2/dof`` of the best-fitting candidate when it misfits (p < 1e-3), else None."""
+    ratios = [(c.chi2 / (n - c.p - 3), n - c.p - 3) for c in cands if n - c.p - 3 > 0]
+    if not ratios:
+        return None
+    r, dof = min(ratios)
+    return float(r) if stats.chi2.sf(r * dof, dof) < 1e-3 else None
+
+
 @dataclass
 class _Candidate:
     kind: str
@@ -961,10 +970,33 @@ class NonlinearEstimator:
         if not table:
             raise NonlinearIdentificationError("no model could be fitted to the staircase data")
 
+        # over-dispersion: when even the best fit leaves a misfit (chi2/dof >> 1: a disturbance, a level
+        # that did not settle, an h no polynomial of this degree follows), chi^2 differences are inflated
+        # by c = chi2/dof and the criterion compares chi2/c (quasi-likelihood BIC, Burnham & Anderson
+        # 2002, Sec. 2.5); otherwise a few per cent of a misfit chooses type and degree by chance. And
+        # when no candidate fits, the structure is wrong somewhere and a high degree buys its fit with
+        # an h that crosses zero elsewhere where the data go (borders shifted far out): the paper's
+        # assumption h(w) = 0 only at w = 0 (Remark 1.3) then decides before the criterion
+        self.c_hat_ = 1.0
+        pool = [c for c in table if np.isfinite(c.chi2)]
+        if self.method == "nls":
+            c_hat = _overdispersion(pool, n)
+            if c_hat is not None:
+                adm = [c for c in pool if _other_zeros(c.kind, c.theta, data) == 0]
+                if adm and len(adm) < len(pool):
+                    warns.append(f"no model fits the staircase data within noise; {len(pool) - len(adm)} fit(s) whose h "
+                                 "has another zero where the data go (Remark 1.3) were set aside")
+                    pool = adm
+                    c_hat = _overdispersion(pool, n)
+            if c_hat is not None:
+                self.c_hat_ = float(c_hat)
+                for c in pool:
+                    c.bic = c.chi2 / c_hat + (c.p + 3) * math.log(n)
+
         # type: the best of each kind by the joint chi^2 and BIC; degree: BIC within the chosen kind
         per_kind = {}
         for kind in kinds:
-            cands = [c for c in table if c.kind == kind and np.isfinite(c.chi2)]
+            cands = [c for c in pool if c.kind == kind]
             if cands:
                 per_kind[kind] = min(cands, key=lambda c: c.bic)
         if not per_kind:
@@ -1026,11 +1058,15 @@ class NonlinearEstimator:
 
         self.result_ = self._result(kind, p, theta, cov, data, st, flat_up, flat_down, V, evidence, warns,
                                     {"chi2": chi2, "dof": dof, "gof_p": gof_p, "n_up": n_up,
-                                     "j_a_test": j_a, "j_d_test": j_d,
+                                     "j_a_test": j_a, "j_d_test": j_d, "overdispersion": self.c_hat_,
                                      "noise_lrv": st.lrv, "noise_df": st.df, "noise_batches": st.n_batches,
                                      "first_sample": st.first.tolist(), "n_averaged": st.n.tolist(),
                                      "selection": [{"type": c.kind, "degree": c.p, "chi2": c.chi2,
-                                                    "criterion": c.bic} for c in table]})
+                                                    "criterion": c.bic, "d_plus": float(c.theta[-3]),
+                                                    "slope_down": float(c.theta[-2]),
+                                                    "d_minus": float(c.theta[-1]),
+                                                    "other_zeros": _other_zeros(c.kind, c.theta, data)}
+                                                   for c in table]})
         r = self.result_
         self.type_, self.degree_ = r.type, r.degree
         self.d_plus_, self.slope_down_, self.d_minus_ = r.d_plus, r.slope_down, r.d_minus
