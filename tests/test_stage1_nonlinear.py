@@ -365,3 +365,108 @@ def test_data_that_do_not_match_the_config(tmp_path):
 def test_estimator_rejects_bad_settings():
     with pytest.raises(ValueError, match="method"):
         NonlinearEstimator(method="magic").fit(None, None, None, None)
+
+
+# --------------------------------------------------- when the plant is not quite the model's structure
+
+class _Drifting:
+    """A slow additive drift on y (Ornstein-Uhlenbeck, s.d. ``std``, time constant ``tau`` s) that
+    carries over from call to call, over a simulated plant."""
+
+    def __init__(self, plant, seed: int, std: float = 0.05, tau: float = 250.0):
+        self.plant, self.rng, self.std, self.tau, self.d, self.calls = plant, np.random.default_rng(seed), std, tau, 0.0, 0
+
+    def run(self, name, u, z=None):
+        r = self.plant.run(name, u, z)
+        a = np.exp(-r.dt / self.tau)
+        e = self.rng.standard_normal(r.y.size) * self.std * np.sqrt(1 - a * a)
+        from scipy import signal
+        dr = signal.lfilter([1.0], [1.0, -a], e, zi=[a * self.d])[0]
+        self.d = float(dr[-1])
+        r.y = r.y + dr
+        return r
+
+
+class _Bent:
+    """The input bends before the gear, ``u + A sin(pi u / 1.2)``: curved borders."""
+
+    def __init__(self, plant, amplitude: float):
+        self.plant, self.A, self.calls = plant, amplitude, 0
+
+    def run(self, name, u, z=None):
+        u = np.asarray(u, float)
+        r = self.plant.run(name, u + self.A * np.sin(np.pi * u / 1.2), z)
+        r.u = u
+        return r
+
+
+DRIFTY = """
+name: drifty
+seed: SEED
+sampling: {dt: 0.02}
+plant:
+  kind: hammerstein_wiener
+  input_nonlinearity: {type: backlash, slope_up: 1.0, slope_down: 1.0, d_plus: 0.3, d_minus: -0.3}
+  linear: {num: [3.0], den: [1.0, 4.0, 5.0, 3.0]}
+  output_nonlinearity: {polynomial: [0, 1.0, 0, -0.25, 0, 0.03]}
+  noise: {std: 0.01}
+protocols:
+  staircase:
+    levels_up: [-1.5, -1.1667, -0.8333, -0.5, -0.1667, 0.1667, 0.5, 0.8333, 1.1667, 1.5]
+    levels_down: [1.5, 1.2, 0.9, 0.6, 0.3, 0.0, -0.3, -0.6, -0.9, -1.2, -1.5]
+    hold: 6.0
+"""
+
+BENT = """
+name: bent
+seed: 0
+sampling: {dt: 0.02}
+plant:
+  kind: hammerstein_wiener
+  input_nonlinearity: {type: backlash_inverse, slope_up: 1.0, slope_down: 1.25, d_plus: 0.25, d_minus: -0.2}
+  linear: {num: [1.0], den: [0.6, 1.0]}
+  output_nonlinearity: {polynomial: [0, 1.0, 0, -0.12]}
+  noise: {std: 0.005}
+protocols:
+  staircase:
+    levels_up: [-1.2, -0.9333, -0.6667, -0.4, -0.1333, 0.1333, 0.4, 0.6667, 0.9333, 1.2]
+    levels_down: [1.2, 0.96, 0.72, 0.48, 0.24, 0.0, -0.24, -0.48, -0.72, -0.96, -1.2]
+    hold: 4.0
+"""
+
+
+def _other_real_zeros(res) -> int:
+    z = np.roots(np.asarray(res.h_coefficients, float)[::-1])
+    z = z[np.abs(z.imag) < 1e-9].real
+    lo, hi = res.w_range
+    return int(np.sum((z >= lo) & (z <= hi) & (np.abs(z) > 1e-6)))
+
+
+@pytest.mark.parametrize("seed", [0, 4])
+def test_slow_drift_does_not_turn_a_backlash_into_a_wild_inverse(seed):
+    """A drift makes every fit misfit (chi2/dof 40-300); a degree-7 Backlash-Inverse with d- = -5
+    then won by a few BIC points (before the quasi-likelihood criterion: 10 of 12 seeds). Now the
+    type is right and each border is off by no more than about the drift's size (s.d. 0.05) over
+    h's slope."""
+    cfg = config.loads(DRIFTY.replace("SEED", str(seed)))
+    res, _ = identify_nonlinear(cfg, plant=_Drifting(make_plant(cfg), seed))
+    assert res.type == "backlash"
+    assert res.fit["overdispersion"] > 5
+    assert abs(res.d_plus - 0.3) < 0.1 and abs(res.d_minus + 0.3) < 0.1 and abs(res.slope_down - 1.0) < 0.1
+    assert _other_real_zeros(res) == 0
+
+
+@pytest.mark.parametrize("amplitude", [0.04, -0.06])
+def test_curved_borders_on_an_inverse_keep_h_zero_at_zero(amplitude):
+    """Curved borders on a Backlash-Inverse: no polynomial h fits; a degree-7 h with zeros at w = +-3
+    (borders d+ = 3, d- = -2.9 to -6) fitted best. Such fits break Remark 1.3 and are set aside when
+    nothing fits; the borders stay within the bend's amplitude of the truth."""
+    cfg = config.loads(BENT)
+    res, _ = identify_nonlinear(cfg, plant=_Bent(make_plant(cfg), amplitude))
+    truth = from_config(cfg.plant).normalised().input
+    assert res.type == "backlash_inverse"
+    assert _other_real_zeros(res) == 0
+    for key in ("d_plus", "d_minus"):
+        assert abs(getattr(res, key) - getattr(truth, key)) <= abs(amplitude), key
+    assert abs(res.slope_down - truth.slope_down) < 0.05
+    assert any("set aside" in w for w in res.warnings)
