@@ -137,3 +137,26 @@ def test_cli_reuses_the_journal_and_exit_codes(plain, base_model, capsys):
         assert ex.value.code == 2
         err = capsys.readouterr().err
         assert err.startswith("hwid: error: --model") and err.count("\n") == 1
+
+
+def test_refloor_measures_the_excess_down_to_the_smallest_gap_left():
+    """A refit model within 3 % of the floor from the repeats, and a delay that leaves less than that
+    floor on validation data it never saw: the noise is at most what the delay leaves, so the delay
+    explains all of the excess and the lag (0.01008) explains 1 - sqrt(0.01008^2 - s^2)/sqrt(0.0103^2
+    - s^2) = 0.43 of it with s = 0.00997."""
+    from hwid.diagnose.rank import Candidate, refloor
+
+    def cand(name, ga, score):
+        return Candidate(name, "linear", {}, ga, ga, 0.0, score, 1.0)
+    cands = [cand("rate_limit", 0.0103, -4.0), cand("sensor_lag", 0.01008, 445.0), cand("time_delay", 0.00997, 702.0),
+             cand("drift", 0.009, 900.0)]
+    out, floor = refloor(cands, 0.0103, 0.0103, drift_plausible=False)
+    assert floor == 0.00997                                    # drift is not eligible here
+    assert [c.effect for c in out[:2]] == ["time_delay", "sensor_lag"]
+    assert out[0].explained_fraction == 1.0
+    s = 0.00997
+    assert out[1].explained_fraction == pytest.approx(1 - np.sqrt(0.01008 ** 2 - s * s) / np.sqrt(0.0103 ** 2 - s * s))
+    assert out[1].explained_fraction == pytest.approx(0.43, abs=0.01)
+    # a floor below every gap left is kept as it is
+    same, floor = refloor(cands[:2], 0.0103, 0.0099, drift_plausible=False)
+    assert floor == 0.0099 and same == cands[:2]

@@ -277,11 +277,15 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
         # effect that the validation data show beyond doubt: the likelihood ratio of the best
         # eligible candidate against the refit model, on validation data the fit never saw, is the
         # second test (5 sigma, as the gap test: chi^2_1 > 25; and its BIC score above 0)
+        # no model fitted elsewhere removes noise from validation data, so the smallest gap a
+        # candidate leaves bounds the noise from above: when that is below the floor from the repeats
+        # (which carry whatever the plant does not repeat exactly), the excess is measured down to it
+        cands, floor = R.refloor(cands, gap_ref, nf.sigma, drift_ok)
         best = next((c for c in cands if c.effect != "drift" or drift_ok), None)
         n_eff = max(n_val / nf.kappa, 2.0)
         if best is not None:
             lr = float(best.score + best.k * np.log(n_eff))
-            by_effect = {"effect": best.effect, "likelihood_ratio": lr, "score": best.score,
+            by_effect = {"effect": best.effect, "likelihood_ratio": lr, "score": best.score, "noise_bound": floor,
                          "significant": bool(best.explained_fraction >= 0.5 and best.score > 0 and lr > 25.0)}
             if by_effect["significant"]:
                 import dataclasses

@@ -538,6 +538,24 @@ def rank(cands: list[Candidate], tie: float = 0.03) -> list[Candidate]:
     return out
 
 
+def refloor(cands: list[Candidate], gap_before: float, sigma: float,
+            drift_plausible: bool) -> tuple[list[Candidate], float]:
+    """The floor and the candidates with explained fractions measured down to ``min(sigma, smallest gap_after)``
+    (eligible candidates; ``drift`` only when plausible), re-ranked. A model fitted on other data
+    cannot remove the validation data's noise, so the smallest gap any candidate leaves is an upper
+    bound on the noise; a floor from repeats above it carries more than noise."""
+    import dataclasses
+    gaps = [c.gap_after for c in cands if (c.effect != "drift" or drift_plausible) and np.isfinite(c.gap_after)]
+    floor = min([sigma] + gaps)
+    if floor >= sigma:
+        return cands, sigma
+    out = rank([dataclasses.replace(c, explained_fraction=explained_fraction(gap_before, c.gap_after, floor))
+                for c in cands])
+    if not drift_plausible:     # listed last, as before
+        out = [c for c in out if c.effect != "drift"] + [c for c in out if c.effect == "drift"]
+    return out, floor
+
+
 def verdict(cands: list[Candidate], significant: bool, drift_plausible: bool,
             threshold: float = 0.5) -> Candidate | None | str:
     """``"none"`` when the gap is noise; the first ranked candidate that explains at least
