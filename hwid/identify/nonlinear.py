@@ -791,6 +791,7 @@ class _Candidate:
     ambiguous: bool = False      # other roots of q fit as well (h has another zero in range)
     j_a: int = 0                 # horizontal paths the closed form used
     j_d: int = 0
+    qbic: float = float("nan")   # the type's criterion: BIC, or quasi-likelihood BIC under a misfit
 
 
 class NonlinearEstimator:
@@ -970,43 +971,44 @@ class NonlinearEstimator:
         if not table:
             raise NonlinearIdentificationError("no model could be fitted to the staircase data")
 
-        # over-dispersion: when even the best fit leaves a misfit (chi2/dof >> 1: a disturbance, a level
-        # that did not settle, an h no polynomial of this degree follows), chi^2 differences are inflated
-        # by c = chi2/dof and the criterion compares chi2/c (quasi-likelihood BIC, Burnham & Anderson
-        # 2002, Sec. 2.5); otherwise a few per cent of a misfit chooses type and degree by chance. And
-        # when no candidate fits, the structure is wrong somewhere and a high degree buys its fit with
-        # an h that crosses zero elsewhere where the data go (borders shifted far out): the paper's
-        # assumption h(w) = 0 only at w = 0 (Remark 1.3) then decides before the criterion
+        # Remark 1.3: h(w) = 0 only at w = 0 is what makes the borders identifiable; a fit whose h
+        # crosses zero elsewhere where the data go (a high degree that buys its fit with borders
+        # shifted far out, when the plant is not quite of the model's structure) is set aside while a
+        # fit that keeps the assumption exists. Over-dispersion: when even the best fit leaves a
+        # misfit (chi2/dof >> 1: a disturbance, a level that did not settle, an h no polynomial of
+        # this degree follows), chi^2 differences are inflated by c = chi2/dof and the type is chosen
+        # by chi2/c (quasi-likelihood BIC, Burnham & Anderson 2002, Sec. 2.5); otherwise a few per
+        # cent of a misfit chooses the type by chance
         self.c_hat_ = 1.0
         pool = [c for c in table if np.isfinite(c.chi2)]
+        adm = [c for c in pool if _other_zeros(c.kind, c.theta, data) == 0]
+        if adm and len(adm) < len(pool):
+            warns.append(f"{len(pool) - len(adm)} fit(s) whose h has another zero where the data go (Remark 1.3 "
+                         "needs h(w) = 0 only at w = 0) were set aside")
+            pool = adm
         if self.method == "nls":
             c_hat = _overdispersion(pool, n)
             if c_hat is not None:
-                adm = [c for c in pool if _other_zeros(c.kind, c.theta, data) == 0]
-                if adm and len(adm) < len(pool):
-                    warns.append(f"no model fits the staircase data within noise; {len(pool) - len(adm)} fit(s) whose h "
-                                 "has another zero where the data go (Remark 1.3) were set aside")
-                    pool = adm
-                    c_hat = _overdispersion(pool, n)
-            if c_hat is not None:
                 self.c_hat_ = float(c_hat)
-                for c in pool:
-                    c.bic = c.chi2 / c_hat + (c.p + 3) * math.log(n)
+        for c in pool:
+            c.qbic = c.chi2 / self.c_hat_ + (c.p + 3) * math.log(n) if self.method == "nls" else c.bic
 
-        # type: the best of each kind by the joint chi^2 and BIC; degree: BIC within the chosen kind
+        # type: the best of each kind by the (quasi-likelihood) BIC; degree: BIC within the chosen kind.
+        # Under a misfit the degree is still chosen by the plain BIC: the misfit is structured, not
+        # noise, and a higher degree follows it where the data go (h of degree 1 for a cubic otherwise)
         per_kind = {}
         for kind in kinds:
             cands = [c for c in pool if c.kind == kind]
             if cands:
-                per_kind[kind] = min(cands, key=lambda c: c.bic)
+                per_kind[kind] = min(cands, key=lambda c: c.qbic)
         if not per_kind:
             raise NonlinearIdentificationError("every fit of the staircase data failed (non-finite chi-square)")
         if self.method == "paper":
             # for the type decision the closed forms are compared by the joint chi^2 they leave
             kind = min(per_kind, key=lambda k: per_kind[k].chi2 + (per_kind[k].p + 3) * math.log(n))
         else:
-            kind = min(per_kind, key=lambda k: per_kind[k].bic)
-        best = per_kind[kind]
+            kind = min(per_kind, key=lambda k: per_kind[k].qbic)
+        best = min((c for c in pool if c.kind == kind), key=lambda c: c.bic)
         p = best.p
         theta = best.theta
         if self.degree is None and p == pmax_up and p < self.max_degree:
@@ -1035,7 +1037,7 @@ class NonlinearEstimator:
         evidence = self._evidence(kind, per_kind, j_a, zu, n, Xu, eu)
         if len(per_kind) == 2:
             other = [k for k in per_kind if k != kind][0]
-            dbic = per_kind[other].bic - per_kind[kind].bic if self.method == "nls" else \
+            dbic = per_kind[other].qbic - per_kind[kind].qbic if self.method == "nls" else \
                 per_kind[other].chi2 - per_kind[kind].chi2
             if dbic < 10:
                 warns.append(f"the data barely distinguish Backlash from Backlash-Inverse (delta = {dbic:.3g} < 10); "
@@ -1062,7 +1064,8 @@ class NonlinearEstimator:
                                      "noise_lrv": st.lrv, "noise_df": st.df, "noise_batches": st.n_batches,
                                      "first_sample": st.first.tolist(), "n_averaged": st.n.tolist(),
                                      "selection": [{"type": c.kind, "degree": c.p, "chi2": c.chi2,
-                                                    "criterion": c.bic, "d_plus": float(c.theta[-3]),
+                                                    "criterion": c.bic, "type_criterion": c.qbic,
+                                                    "d_plus": float(c.theta[-3]),
                                                     "slope_down": float(c.theta[-2]),
                                                     "d_minus": float(c.theta[-1]),
                                                     "other_zeros": _other_zeros(c.kind, c.theta, data)}
@@ -1107,7 +1110,7 @@ class NonlinearEstimator:
         if len(per_kind) == 2:
             other = [k for k in per_kind if k != kind][0]
             if self.method == "nls":
-                parts.append(f"BIC prefers {kind} by {per_kind[other].bic - per_kind[kind].bic:.4g}")
+                parts.append(f"BIC prefers {kind} by {per_kind[other].qbic - per_kind[kind].qbic:.4g}")
             else:
                 parts.append(f"the closed form's joint chi2 prefers {kind} by "
                              f"{per_kind[other].chi2 - per_kind[kind].chi2:.4g}")
