@@ -160,3 +160,22 @@ def test_refloor_measures_the_excess_down_to_the_smallest_gap_left():
     # a floor below every gap left is kept as it is
     same, floor = refloor(cands[:2], 0.0103, 0.0099, drift_plausible=False)
     assert floor == 0.0099 and same == cands[:2]
+
+
+def test_no_parametric_g_falls_back_to_a_first_order_fit():
+    """Stage 2 found no stable rational G (the diagnosis used to stop): the model is built with
+    1/(tau s + 1) fitted to the estimates; for estimates of 1/(2 s + 1), tau = 2."""
+    from types import SimpleNamespace
+
+    from hwid.diagnose import model_from_results
+    w = np.array([0.1, 0.3, 1.0, 3.0])
+    G = 1.0 / (1.0 + 2j * w)
+    lin = SimpleNamespace(frequencies=w, gain=np.abs(G), phase=-np.angle(G),
+                          parametric={"num": [], "den": [], "delay": 0.0, "error": "no stable rational model"})
+    from hwid.model import InputNonlinearity
+    nl = SimpleNamespace(input_nonlinearity=lambda: InputNonlinearity("backlash", 1.0, 1.0, 0.3, -0.3),
+                         h_coefficients=[0.0, 1.0, 0.0, -0.1])
+    notes: list = []
+    m = model_from_results(nl, lin, notes)
+    assert m.linear.den[0] == pytest.approx(2.0, rel=1e-4) and m.linear.num == (1.0,)
+    assert len(notes) == 1 and "no stable rational model" in notes[0]

@@ -35,8 +35,28 @@ __all__ = ["diagnose", "load_model", "load_diagnosis", "plot_residual_map", "plo
 
 # -------------------------------------------------------------------------------------- the sim side
 
-def model_from_results(nl, lin):
-    """The normalised HW model of a stage 1 result and a stage 2 result (its parametric G)."""
+def first_order_fallback(lin) -> tuple[list, list]:
+    """``G(s) = 1/(tau s + 1)`` fitted to the stage 2 estimates ``G_hat(j omega_i)`` (relative
+    least squares over ``log tau``): a stable start for the diagnosis's refit of G when stage 2 found
+    no parametric model."""
+    from scipy.optimize import minimize_scalar
+    w = np.asarray(lin.frequencies, float)
+    G = np.asarray(lin.gain, float) * np.exp(-1j * np.asarray(lin.phase, float))
+    ok = np.isfinite(G) & (np.abs(G) > 0) & (w > 0)
+    if not np.any(ok):
+        raise HwidError("the stage 2 result has no finite frequency response; diagnose cannot build G(s)")
+    w, G = w[ok], G[ok]
+
+    def cost(lt):
+        return float(np.sum(np.abs(1.0 / (1.0 + 1j * w * np.exp(lt)) / G - 1.0) ** 2))
+    lo, hi = np.log(0.01 / w.max()), np.log(100.0 / w.min())
+    tau = float(np.exp(minimize_scalar(cost, bounds=(lo, hi), method="bounded").x))
+    return [1.0], [tau, 1.0]
+
+
+def model_from_results(nl, lin, notes: list | None = None):
+    """The normalised HW model of a stage 1 result and a stage 2 result (its parametric G; when stage
+    2 found none, a first-order G fitted to its estimates, said in ``notes``)."""
     from hwid.blocks.linear import LinearBlock
     from hwid.blocks.static import PolynomialH
     from hwid.model import HWModel
@@ -44,8 +64,12 @@ def model_from_results(nl, lin):
     num = np.atleast_1d(np.asarray(par.get("num", []), float))
     den = np.atleast_1d(np.asarray(par.get("den", []), float))
     if num.size == 0 or den.size == 0 or not np.all(np.isfinite(num)) or not np.all(np.isfinite(den)):
-        raise HwidError("the stage 2 result has no parametric G(s) "
-                        f"({par.get('error', 'no num/den')}); diagnose needs one to simulate the model")
+        n1, d1 = first_order_fallback(lin)
+        num, den = np.asarray(n1), np.asarray(d1)
+        why, par = par.get("error", "no num/den"), {"delay": 0.0}
+        if notes is not None:
+            notes.append(f"stage 2 found no parametric G(s) ({why}); the diagnosis "
+                         f"starts from G(s) = 1/({den[0]:.4g} s + 1) fitted to the estimates G(j omega)")
     num = np.trim_zeros(num, "f")
     den = np.trim_zeros(den, "f")
     return HWModel(nl.input_nonlinearity(), LinearBlock(tuple(num.tolist()), tuple(den.tolist()),
@@ -94,8 +118,12 @@ def load_model(spec, cfg=None, plant=None, out_dir=None, echo=print):
                 if not (p / name).exists():
                     raise HwidError(f"--model {p}: no {name} in that directory (write one with 'hwid run')")
             nl = load_nonlinear(p / "nonlinear.h5")
-            return model_from_results(nl, load_linear(p / "linear.h5")), \
-                {"source": "results", "path": str(p), "w_range": [float(x) for x in nl.w_range]}
+            notes: list = []
+            m = model_from_results(nl, load_linear(p / "linear.h5"), notes)
+            for t in notes:
+                echo(t)
+            return m, {"source": "results", "path": str(p), "w_range": [float(x) for x in nl.w_range],
+                       "notes": notes}
         if not p.exists():
             raise HwidError(f"--model {p}: no such file or directory")
         return _model_from_yaml(p), {"source": "yaml", "path": str(p)}
@@ -117,8 +145,11 @@ def load_model(spec, cfg=None, plant=None, out_dir=None, echo=print):
          f"d- = {nl.d_minus:.4g}, S^d = {nl.slope_down:.4g}, h degree {nl.degree}, "
          f"G = {list(np.round(lin.parametric.get('num', []), 4))}/{list(np.round(lin.parametric.get('den', []), 4))}")
     lv = list(cfg.protocols.staircase.levels_up) + list(cfg.protocols.staircase.levels_down)
-    model = model_from_results(nl, lin)
-    return model, {"source": "identified", "w_range": [float(x) for x in nl.w_range],
+    notes: list = []
+    model = model_from_results(nl, lin, notes)
+    for m in notes:
+        echo(m)
+    return model, {"source": "identified", "w_range": [float(x) for x in nl.w_range], "notes": notes,
                    "u_range": [float(min(lv)), float(max(lv))],
                    "records": [r for r in list(nl_rec) + list(lin_rec) if getattr(r, "y", None) is not None]}
 
