@@ -179,3 +179,17 @@ def test_no_parametric_g_falls_back_to_a_first_order_fit():
     m = model_from_results(nl, lin, notes)
     assert m.linear.den[0] == pytest.approx(2.0, rel=1e-4) and m.linear.num == (1.0,)
     assert len(notes) == 1 and "no stable rational model" in notes[0]
+
+
+def test_refloor_ties_candidates_whose_scores_are_close():
+    """Down to the smallest gap left, 0.010015 and 0.010023 explain 1.0 and 0.90 of the excess
+    above it, yet their BIC scores differ by 4: a tie, where the resonance pressed against its
+    damping limit ranks after the delay."""
+    from hwid.diagnose.rank import Candidate, refloor
+    reso = Candidate("resonance", "linear", {}, 0.010015, 0.010015, 0.0, 1104.0, 2.0, at_bound=True)
+    delay = Candidate("time_delay", "linear", {}, 0.010023, 0.010023, 0.0, 1100.0, 1.0)
+    lag = Candidate("sensor_lag", "output", {}, 0.010078, 0.010078, 0.0, 1008.0, 1.0)
+    out, floor = refloor([reso, lag, delay], 0.01077, 0.01019, drift_plausible=False)
+    assert floor == 0.010015
+    assert [c.effect for c in out] == ["time_delay", "resonance", "sensor_lag"]
+    assert out[1].explained_fraction == 1.0 and 0.85 < out[0].explained_fraction < 0.95

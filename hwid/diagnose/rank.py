@@ -522,16 +522,18 @@ def fit_all(fitter: EffectFitter, effects: dict[str, E.Effect], echo=None) -> li
     return rank(out)
 
 
-def rank(cands: list[Candidate], tie: float = 0.03) -> list[Candidate]:
-    """By explained fraction; candidates within ``tie`` of each other by score (fewer parameters win
-    when they explain as much), after those whose fit pressed against a bound that defines them
-    (a resonance at the largest damping a lightly damped mode may have explains as a plain
-    low-pass would: a delay or a lag that explains as much is the better name)."""
+def rank(cands: list[Candidate], tie: float = 0.03, score_tie: float | None = None) -> list[Candidate]:
+    """By explained fraction; candidates within ``tie`` of each other (or, with ``score_tie``, whose
+    scores are within it of the top's) by score (fewer parameters win when they explain as much),
+    after those whose fit pressed against a bound that defines them (a resonance at the largest
+    damping a lightly damped mode may have explains as a plain low-pass would: a delay or a lag that
+    explains as much is the better name)."""
     cands = sorted(cands, key=lambda c: -c.explained_fraction)
     out: list[Candidate] = []
     while cands:
         top = cands[0].explained_fraction
-        grp = [c for c in cands if c.explained_fraction >= top - tie]
+        grp = [c for c in cands if c.explained_fraction >= top - tie
+               or (score_tie is not None and c.score >= cands[0].score - score_tie)]
         grp.sort(key=lambda c: (c.at_bound, -c.score))
         out += grp
         cands = [c for c in cands if c not in grp]
@@ -549,8 +551,10 @@ def refloor(cands: list[Candidate], gap_before: float, sigma: float,
     floor = min([sigma] + gaps)
     if floor >= sigma:
         return cands, sigma
+    # measured down to the smallest gap left, the fractions stretch: candidates whose BIC scores are
+    # within 10 of the top's (very strong evidence, Kass & Raftery 1995) are tied with it
     out = rank([dataclasses.replace(c, explained_fraction=explained_fraction(gap_before, c.gap_after, floor))
-                for c in cands])
+                for c in cands], score_tie=10.0)
     if not drift_plausible:     # listed last, as before
         out = [c for c in out if c.effect != "drift"] + [c for c in out if c.effect == "drift"]
     return out, floor
