@@ -193,3 +193,32 @@ def test_refloor_ties_candidates_whose_scores_are_close():
     assert floor == 0.010015
     assert [c.effect for c in out] == ["time_delay", "resonance", "sensor_lag"]
     assert out[1].explained_fraction == 1.0 and 0.85 < out[0].explained_fraction < 0.95
+
+
+def test_drift_is_additive_against_a_wandering_gain():
+    """Repeat differences of a slow additive drift (time constant 80 or 400 s, s.d. 0.05) are
+    additive, their fast part is (almost) noise and hardly follows the output; those of a gain that
+    wanders by 15 % around a stepping output follow the output."""
+    from hwid.diagnose.gap import drift_is_additive
+    rng = np.random.default_rng(11)
+    dt, n, sigma = 0.02, 6000, 0.01
+    t = np.arange(n) * dt
+    x = 0.6 * np.sign(np.sin(2 * np.pi * t / 7.0)) + 0.3 * np.sin(2 * np.pi * t / 23.0)   # steps and a sine
+    a = np.exp(-dt / 80.0)
+
+    def ou(a=a):
+        e = rng.standard_normal(n) * 0.05 * np.sqrt(1 - a * a)
+        from scipy import signal
+        return signal.lfilter([1.0], [1.0, -a], e)
+
+    mask = np.ones(n, bool)
+    noise = lambda: sigma * rng.standard_normal(n)   # noqa: E731
+    for tau in (80.0, 400.0):
+        b = np.exp(-dt / tau)
+        drift_pairs = [(x + ou(b) + noise(), x + ou(b) + noise(), mask) for _ in range(3)]
+        r = drift_is_additive(drift_pairs, [x] * 3, width=150, sigma=sigma)
+        assert r["additive"] and r["fast_share"] < 0.2, (tau, r)
+    g = lambda: 1.0 + 0.15 * np.sin(2 * np.pi * (t + rng.uniform(0, 300)) / 300.0)   # noqa: E731
+    gain_pairs = [(g() * x + noise(), g() * x + noise(), mask) for _ in range(3)]
+    r = drift_is_additive(gain_pairs, [x] * 3, width=150, sigma=sigma)
+    assert not r["additive"] and r["output_share"] > 0.5 and r["fast_share"] > 0.5
