@@ -41,7 +41,11 @@ The estimator (:class:`NonlinearEstimator`)
    path or on a border follows the parameters. Started from step 3.
 5. Degree ``p`` and type (Backlash / Backlash-Inverse, Remark 1.4) by BIC of the joint fit
    ``chi^2 + k ln n``, ``p`` limited by eq. (11) (``N - j_a >= p + 1``); a configured degree
-   overrides the selection.
+   overrides the selection. Fits whose ``h_bar`` has another real zero where the data go are set
+   aside while one that keeps Remark 1.3 exists. When no candidate fits within noise (the plant is
+   not quite of this structure: a drift, curved borders), the type is chosen by the
+   quasi-likelihood BIC ``chi^2 / c + k ln n`` with ``c`` the best fit's ``chi^2/dof``; the
+   degree within the type still by the BIC.
 6. 95 % intervals from the covariance ``(J^T W J)^-1`` (nls) or from the delta method through the
    closed form (paper), with t quantiles on the noise's degrees of freedom.
 """
