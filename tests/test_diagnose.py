@@ -222,3 +222,18 @@ def test_drift_is_additive_against_a_wandering_gain():
     gain_pairs = [(g() * x + noise(), g() * x + noise(), mask) for _ in range(3)]
     r = drift_is_additive(gain_pairs, [x] * 3, width=150, sigma=sigma)
     assert not r["additive"] and r["output_share"] > 0.5 and r["fast_share"] > 0.5
+
+
+def test_noise_floor_limit_scales_with_the_measured_output():
+    """A model that diverges (outputs of 1e7) must not lift the floor's lower limit (1e-6 of the
+    output range) above the noise: the range is the plant's measured one when known."""
+    from hwid.diagnose.effects import Scale
+    from hwid.diagnose.gap import noise_floor
+    sc = Scale(0.02, -1.5, 1.5, -8e6, 1e6, 10.0, 12.0, 1.0, 100.0, -0.95, 0.99)
+    assert sc.y_width == 9e6 and sc.y_obs_width == pytest.approx(1.94)
+    assert Scale(0.02, -1.5, 1.5, -1.0, 1.0, 1.0, 1.0, 1.0, 1.0).y_obs_width == 2.0   # unknown: the model's
+    rng = np.random.default_rng(3)
+    y = np.sin(np.linspace(0, 20, 4000))
+    pairs = [(y + 0.01 * rng.standard_normal(y.size), y + 0.01 * rng.standard_normal(y.size), np.ones(y.size, bool))]
+    assert noise_floor(pairs, 200, sc.y_obs_width).sigma == pytest.approx(0.01, rel=0.05)
+    assert noise_floor(pairs, 200, sc.y_width).sigma == 9.0          # what the model's range had given
