@@ -409,7 +409,7 @@ class Resonance(Effect):
 
     def starts(self, sc):
         lo, hi = self.bounds(sc)
-        return _grid(np.geomspace(lo[0], hi[0], 16), [0.03, 0.1, ZETA_LIGHT])
+        return _grid(np.geomspace(lo[0], hi[0], 40), [0.03, 0.1, ZETA_LIGHT])
 
     def at_defining_bound(self, theta) -> bool:
         return float(theta[1]) >= 0.97 * ZETA_LIGHT
