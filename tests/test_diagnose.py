@@ -237,3 +237,20 @@ def test_noise_floor_limit_scales_with_the_measured_output():
     pairs = [(y + 0.01 * rng.standard_normal(y.size), y + 0.01 * rng.standard_normal(y.size), np.ones(y.size, bool))]
     assert noise_floor(pairs, 200, sc.y_obs_width).sigma == pytest.approx(0.01, rel=0.05)
     assert noise_floor(pairs, 200, sc.y_width).sigma == 9.0          # what the model's range had given
+
+
+def test_sine_names_are_unique_when_an_amplitude_is_capped(tmp_path):
+    """Inside the identified range the 1.25x validation sine is capped at the w range's edge; when
+    that edge is within the names' 3 digits of the amplitude, the two sines are one experiment (a
+    second 'sine_validation_A1_w...' had stopped the diagnosis at the HDF5 write)."""
+    import dataclasses
+
+    from hwid.diagnose import experiments as X
+    from hwid.model import from_config
+    cfg = config.load(_cfg(tmp_path, "plain"))
+    model = from_config(config.PlantCfg.model_validate(R.BASE))
+    d = X.design_from(cfg, model)
+    d = dataclasses.replace(d, inside=True, w_lo=-1.0004 * d.amplitude, w_hi=1.0004 * d.amplitude)
+    names = [e.name for e in X.design(cfg, model, d)]
+    assert len(names) == len(set(names))
+    assert sum(n.startswith("sine_validation_A0.8_") for n in names) >= 3

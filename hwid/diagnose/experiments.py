@@ -275,10 +275,11 @@ def design(cfg, model: HWModel, d: Design | None = None) -> list[Experiment]:
         for amp, w in items:
             amp = min(amp, a_max)
             w = min(w, nyq / 10)
-            if (round(amp, 12), round(w, 12)) in seen:
+            name = f"sine_{role}_A{amp:.3g}_w{w:.3g}"
+            if name in seen:     # the same sine to the names' 3 digits (an amplitude capped at a_max)
                 continue
-            seen.add((round(amp, 12), round(w, 12)))
-            exps.append(_sine_exp(d, F, f"sine_{role}_A{amp:.3g}_w{w:.3g}", role, amp, w))
+            seen.add(name)
+            exps.append(_sine_exp(d, F, name, role, amp, w))
     # broadband
     for role, rng in (("fit", rng_fit), ("validation", rng_val)):
         n = _n(6 * H, dt)
