@@ -296,8 +296,10 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
             raise HwidError(f"unknown effect(s) {', '.join(unknown)}; the catalogue is {', '.join(CATALOGUE)}")
         effs = {k: v for k, v in effs.items() if k in effects}
     cands = R.fit_all(fitter, effs, echo=echo)
-    x_rep = {exps[i].name: sim_val.x[j] for j, i in enumerate(val_idx)}
-    add = Gp.drift_is_additive(pairs, [x_rep[e.name] for e in exps if e.repeat_of],
+    # what the repeat difference is regressed on: the plant's own output (the mean of the pair; its
+    # noise is uncorrelated with the difference's), not the model's, which an identification that
+    # the disturbance distorted gets wrong exactly where a gain's wander shows
+    add = Gp.drift_is_additive(pairs, [0.5 * (np.asarray(ya, float) + np.asarray(yb, float)) for ya, yb, _ in pairs],
                                max(int(round(d.settle_s / (2 * d.dt))), 5), nf.sigma)
     drift_ok = bool(nf.slow_z > 10 and add["additive"])
     if not drift_ok:    # drift listed last: the plant repeats itself, or what changes is not additive

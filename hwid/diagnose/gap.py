@@ -291,23 +291,29 @@ def trend(exps, residuals, sigma: float, dt: float) -> dict:
             "families": {k: [[float(a), float(b)] for a, b in v] for k, v in fams.items()}}
 
 
+FAST_SHARE = 0.25
+
+
 def drift_is_additive(pairs, models, width: int, sigma: float) -> dict:
     """Is what changes between repeats an additive offset (a drift), or does it scale with the
     output (a gain that wanders, which is not in the catalogue)?
 
     For each repeated pair, ``d = y_a - y_b`` is regressed on a cubic in time (an additive drift is
-    smooth in time whatever the input does), then also on ``x`` and ``x t`` (``x`` the model output,
-    centred). ``output_share`` is the share of the excess (above noise) residual of the first fit
-    that the output terms remove. A cubic cannot follow every wander of a drift over a long record,
+    smooth in time whatever the input does), then also on ``x`` and ``x t`` (``x`` the output,
+    centred; the diagnosis passes the plant's own output, the mean of the pair). ``output_share``
+    is the share of the excess (above noise) residual of the first fit that the output terms
+    remove. A cubic cannot follow every wander of a drift over a long record,
     and what it leaves can line up with a slow part of ``x`` by chance; so the same is asked of the
     fast parts, ``d`` and ``x`` less their moving averages over ``2 width`` samples (a drift has
     hardly any fast part; a gain that wanders multiplies every step of ``x``): ``fast_share`` is the
     largest share of a pair's fast power that ``x`` and ``x t`` remove (a few per cent for a drift,
-    whose fast part is noise; 0.6-0.99 on the pair with the sharpest steps for a wandering gain).
+    whose fast part is noise; 0.3-0.99 on the pair with the sharpest steps for a wandering gain).
     Measured against the fast power itself, not its excess over the noise floor: when the fast part
     is noise the excess is near zero and a chance drop of 2 % of the noise had read as a share of 1,
     and when the gain's wander inflates the floor the excess vanishes.
-    The difference follows the output (not ``additive``) when both shares are at least one half.
+    The difference follows the output (not ``additive``) when the slow share is at least one half
+    and the fast share at least :data:`FAST_SHARE` (a quarter of the fast power: chance gives a drift
+    a few per cent).
     """
     from scipy.ndimage import uniform_filter1d
     drop = excess = 0.0
@@ -337,4 +343,4 @@ def drift_is_additive(pairs, models, width: int, sigma: float) -> dict:
                 fast = max(fast, (pf - float(rr @ rr)) / pf)
     share = drop / excess if excess > 0 else 0.0
     return {"output_share": float(min(share, 1.0)), "fast_share": float(min(fast, 1.0)),
-            "additive": bool(share < 0.5 or fast < 0.5)}
+            "additive": bool(share < 0.5 or fast < FAST_SHARE)}
