@@ -299,8 +299,8 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
     # what the repeat difference is regressed on: the plant's own output (the mean of the pair; its
     # noise is uncorrelated with the difference's), not the model's, which an identification that
     # the disturbance distorted gets wrong exactly where a gain's wander shows
-    add = Gp.drift_is_additive(pairs, [0.5 * (np.asarray(ya, float) + np.asarray(yb, float)) for ya, yb, _ in pairs],
-                               max(int(round(d.settle_s / (2 * d.dt))), 5), nf.sigma)
+    y_pair = [0.5 * (np.asarray(ya, float) + np.asarray(yb, float)) for ya, yb, _ in pairs]
+    add = Gp.drift_is_additive(pairs, y_pair, max(int(round(d.settle_s / (2 * d.dt))), 5), nf.sigma)
     drift_ok = bool(nf.slow_z > 10 and add["additive"])
     if not drift_ok:    # drift listed last: the plant repeats itself, or what changes is not additive
         cands = [c for c in cands if c.effect != "drift"] + [c for c in cands if c.effect == "drift"]
