@@ -796,6 +796,7 @@ class _Candidate:
     j_a: int = 0                 # horizontal paths the closed form used
     j_d: int = 0
     qbic: float = float("nan")   # the type's criterion: BIC, or quasi-likelihood BIC under a misfit
+    other_zeros: int = -1        # real zeros of h_bar other than 0 where the data go (-1: not computed)
 
 
 class NonlinearEstimator:
@@ -985,7 +986,9 @@ class NonlinearEstimator:
         # cent of a misfit chooses the type by chance
         self.c_hat_ = 1.0
         pool = [c for c in table if np.isfinite(c.chi2)]
-        adm = [c for c in pool if _other_zeros(c.kind, c.theta, data) == 0]
+        for c in pool:
+            c.other_zeros = _other_zeros(c.kind, c.theta, data)
+        adm = [c for c in pool if c.other_zeros == 0]
         if adm and len(adm) < len(pool):
             warns.append(f"{len(pool) - len(adm)} fit(s) whose h has another zero where the data go (Remark 1.3 "
                          "needs h(w) = 0 only at w = 0) were set aside")
@@ -1072,7 +1075,7 @@ class NonlinearEstimator:
                                                     "d_plus": float(c.theta[-3]),
                                                     "slope_down": float(c.theta[-2]),
                                                     "d_minus": float(c.theta[-1]),
-                                                    "other_zeros": _other_zeros(c.kind, c.theta, data)}
+                                                    "other_zeros": c.other_zeros}
                                                    for c in table]})
         r = self.result_
         self.type_, self.degree_ = r.type, r.degree
