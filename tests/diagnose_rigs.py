@@ -87,6 +87,21 @@ def rate_limit(u, dt):
     return r.base(ua, dt) + r.noise(u.size)
 
 
+def rate_limit_carried(u, dt):
+    """The same actuator, but its position carries over from call to call as on a physical rig
+    (``rate_limit`` resets it to ``u[0]`` at every call, as a driver that homes it would)."""
+    r = _rig("rate_limit_carried")
+    u = np.asarray(u, float)
+    step = TRUTH["rate_limit"]["rate"] * dt
+    ua = np.empty_like(u)
+    p = getattr(r, "actuator", u[0])
+    for i, ui in enumerate(u):
+        p += min(max(ui - p, -step), step)
+        ua[i] = p
+    r.actuator = p
+    return r.base(ua, dt) + r.noise(u.size)
+
+
 def input_deadzone(u, dt):
     r = _rig("input_deadzone")
     u = np.asarray(u, float)

@@ -88,6 +88,20 @@ def test_rate_limit_named_and_gap_grows_with_rate(tmp_path_factory, base_model):
     assert abs(s["candidates"][0]["params"]["rate"] / R.TRUTH["rate_limit"]["rate"] - 1) < 0.05
     assert s["where"]["trend"].startswith("grows with") and "rate" in s["where"]["trend"]
     assert s["gap_after"] < 1.2 * s["noise_floor"]
+    assert s["candidates"][0]["params"]["carried"] < 0.5       # this rig resets its actuator at every call
+
+
+def test_rate_limit_whose_actuator_carries_over(tmp_path_factory, base_model):
+    """At 0.4 units/s the actuator cannot reach the lead-in's far level (held 1.2 s, 0.8-2 units
+    away) when it starts where the previous experiment left it; the backlash is then not where a
+    fresh start puts it. Started from the rig's last input, the effect explains it to the floor (a
+    fresh start left the steps and broadband experiments 2-10x the floor)."""
+    s, _ = _run(tmp_path_factory, "rate_limit_carried", base_model)
+    top = s["candidates"][0]
+    assert s["verdict"]["effect"] == "rate_limit" == top["effect"]
+    assert abs(top["params"]["rate"] / R.TRUTH["rate_limit"]["rate"] - 1) < 0.05
+    assert top["params"]["carried"] > 0.9
+    assert s["gap_after"] < 1.2 * s["noise_floor"]
 
 
 def test_outside_effect_is_unexplained(tmp_path_factory, base_model):

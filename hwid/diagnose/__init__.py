@@ -252,8 +252,13 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
     fit_idx = [i for i, e in enumerate(exps) if e.role == "fit"]
     val_idx = [i for i, e in enumerate(exps) if e.role == "validation"]
     t0 = time.perf_counter()
-    sim_fit = ModelSim(sim_model, d.dt, [exps[i].u for i in fit_idx])
-    sim_val = ModelSim(sim_model, d.dt, [exps[i].u for i in val_idx])
+    # the input the plant held when each experiment began (they run in this order, after the
+    # identification's records when the model was identified here)
+    keep = max(int(round(4 * d.settle_s / d.dt)), 1)       # the last moves and hold of the one before
+    ids = [np.asarray(r.u, float) for r in origin.get("records", []) if np.size(getattr(r, "u", None))]
+    u_before = [ids[-1][-keep:] if ids else None] + [e.u[-keep:] for e in exps[:-1]]
+    sim_fit = ModelSim(sim_model, d.dt, [exps[i].u for i in fit_idx], [u_before[i] for i in fit_idx])
+    sim_val = ModelSim(sim_model, d.dt, [exps[i].u for i in val_idx], [u_before[i] for i in val_idx])
     sc = _scale(d, sim_model, exps, sim_fit, sim_val, records)
 
     # noise floor from the repeats

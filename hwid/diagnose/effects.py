@@ -129,10 +129,12 @@ def _direction_arrays(z, up, dn, u0):
     return out
 
 
-def rate_limited(u, rate: float, dt: float) -> np.ndarray:
-    """An actuator slewing at most ``rate`` units/s, starting at ``u[0]``."""
+def rate_limited(u, rate: float, dt: float, start: float | None = None) -> np.ndarray:
+    """An actuator slewing at most ``rate`` units/s, starting at ``start`` (default ``u[0]``)."""
     u = np.ascontiguousarray(u, float)
-    return _rate_limit(u, float(rate) * dt, float(u[0])) if u.size else u.copy()
+    if not u.size:
+        return u.copy()
+    return _rate_limit(u, float(rate) * dt, float(u[0] if start is None else start))
 
 
 def deadzone(u, delta: float) -> np.ndarray:
@@ -170,12 +172,18 @@ class ModelSim:
 
     Every experiment is simulated from the model's default initial state; the diagnosis
     experiments start with a lead-in (excluded from every gap) that makes the state irrelevant.
+    ``u_before[i]`` is the end of the input the plant received before experiment ``i`` (the
+    experiment run before it, or None): an actuator with memory (a rate limit) starts where that
+    left it, not at the experiment's first sample, and may not reach the lead-in's far level in
+    time; the backlash is then where that input's last moves put it.
     """
 
-    def __init__(self, model: HWModel, dt: float, inputs):
+    def __init__(self, model: HWModel, dt: float, inputs, u_before=None):
         self.model = model
         self.dt = float(dt)
         self.inputs = [np.ascontiguousarray(u, float) for u in inputs]
+        self.u_before = ([None if b is None else np.ascontiguousarray(b, float) for b in u_before]
+                         if u_before is not None else None)
         self.v = [model.input.apply(u) for u in self.inputs]
         self.w = [simulate_linear(model.linear, v, self.dt) for v in self.v]
         self.x = [model.output(w) for w in self.w]
@@ -186,12 +194,18 @@ class ModelSim:
         new = object.__new__(ModelSim)
         new.model = HWModel(self.model.input, self.model.linear, h)
         new.dt, new.inputs, new.v, new.w = self.dt, self.inputs, self.v, self.w
+        new.u_before = self.u_before
         new.x = [h(w) for w in self.w]
         return new
 
     def from_input(self, u, F: InputNonlinearity | None = None, i: int | None = None) -> np.ndarray:
         v = (F or self.model.input).apply(u)
         return self.from_v(v)
+
+    def before(self, i: int):
+        """The end of the input the plant received before experiment ``i`` (None if unknown)."""
+        ub = getattr(self, "u_before", None)
+        return None if ub is None else ub[i]
 
     def from_v(self, v, G: LinearBlock | None = None) -> np.ndarray:
         return self.model.output(simulate_linear(G or self.model.linear, v, self.dt))
@@ -264,21 +278,38 @@ class InputSaturation(Effect):
 
 
 class RateLimit(Effect):
+    """The actuator slews at most ``rate`` units/s.
+
+    On a physical rig its position carries over from one experiment to the next, and a slow
+    actuator may not reach the lead-in's far level before the experiment proper: the backlash is
+    then where the previous input's last moves left it, not where a fresh start puts it. A rig
+    driver may also reset the actuator at every call. ``carried`` in [0, 1] weighs the two: the
+    output of the actuator started at ``u[0]`` (0) and that of the actuator run on through the end
+    of the previous experiment's input (:meth:`ModelSim.before`) first (1)."""
+
     def __init__(self):
-        super().__init__("rate_limit", "input", ("rate",), "the actuator slews at most `rate` units/s")
+        super().__init__("rate_limit", "input", ("rate", "carried"), "the actuator slews at most `rate` units/s")
 
     def log_params(self):
-        return (True,)
+        return (True, False)
 
     def bounds(self, sc):
-        return np.array([sc.u_width / (20 * sc.settle_s)]), np.array([sc.u_width / sc.dt])
+        return np.array([sc.u_width / (20 * sc.settle_s), 0.0]), np.array([sc.u_width / sc.dt, 1.0])
 
     def starts(self, sc):
         lo, hi = self.bounds(sc)
-        return [np.array([r]) for r in np.geomspace(lo[0], hi[0], 14)]
+        return _grid(np.geomspace(lo[0], hi[0], 14), [0.0, 1.0])
 
     def simulate(self, sim, theta, i):
-        return sim.from_input(rate_limited(sim.inputs[i], theta[0], sim.dt))
+        u = sim.inputs[i]
+        c = float(theta[1])
+        fresh = sim.from_input(rate_limited(u, theta[0], sim.dt)) if c < 1 else 0.0
+        prev = sim.before(i)
+        if c <= 0 or prev is None or not prev.size:
+            return fresh if c < 1 else sim.from_input(rate_limited(u, theta[0], sim.dt))
+        uu = np.concatenate([prev, u])
+        carried = sim.from_input(rate_limited(uu, theta[0], sim.dt))[prev.size:]
+        return carried if c >= 1 else fresh + c * (carried - fresh)
 
 
 class InputDeadzone(Effect):

@@ -311,9 +311,12 @@ def drift_is_additive(pairs, models, width: int, sigma: float) -> dict:
     Measured against the fast power itself, not its excess over the noise floor: when the fast part
     is noise the excess is near zero and a chance drop of 2 % of the noise had read as a share of 1,
     and when the gain's wander inflates the floor the excess vanishes.
-    The difference follows the output (not ``additive``) when the slow share is at least one half
-    and the fast share at least :data:`FAST_SHARE` (a quarter of the fast power: chance gives a drift
-    a few per cent).
+    The difference follows the output (not ``additive``) when the fast share is at least
+    :data:`FAST_SHARE` (a quarter of the fast power). The slow share is reported, not used: a drift
+    that a cubic cannot follow lines up with a slow part of ``x`` by chance (0-1 on the blind
+    check's drifts), and a wandering gain whose difference changed sign within a record can leave it
+    below one half (0.42 with a fast share of 0.64). Drifts' fast shares stayed below 0.17 there,
+    wandering gains' mostly above 0.3.
     """
     from scipy.ndimage import uniform_filter1d
     drop = excess = 0.0
@@ -343,4 +346,4 @@ def drift_is_additive(pairs, models, width: int, sigma: float) -> dict:
                 fast = max(fast, (pf - float(rr @ rr)) / pf)
     share = drop / excess if excess > 0 else 0.0
     return {"output_share": float(min(share, 1.0)), "fast_share": float(min(fast, 1.0)),
-            "additive": bool(share < 0.5 or fast < FAST_SHARE)}
+            "additive": bool(fast < FAST_SHARE)}

@@ -489,6 +489,7 @@ class _GSim(E.ModelSim):
         from hwid.model import HWModel
         self.model = HWModel(F, G, base.model.output)
         self.dt, self.inputs = base.dt, base.inputs
+        self.u_before = getattr(base, "u_before", None)
         self._v = self._w = self._x = None
 
     @property

@@ -40,8 +40,9 @@ The estimator (:class:`NonlinearEstimator`)
    recursion of ``F_bar`` over all levels including the lead-in, so which levels lie on the flat
    path or on a border follows the parameters. Started from step 3.
 5. Degree ``p`` and type (Backlash / Backlash-Inverse, Remark 1.4) by BIC of the joint fit
-   ``chi^2 + k ln n``, ``p`` limited by eq. (11) (``N - j_a >= p + 1``); a configured degree
-   overrides the selection. Fits whose ``h_bar`` has another real zero where the data go are set
+   ``chi^2 + k ln n``, ``p`` limited by eq. (11) (``N - j_a >= p + 1``) unless the joint fit
+   at that limit still misfits: then higher degrees are fitted jointly (both staircases sample
+   ``h``) while the misfit lasts and each added coefficient passes an F test; a configured degree overrides the selection. Fits whose ``h_bar`` has another real zero where the data go are set
    aside while one that keeps Remark 1.3 exists. When no candidate fits within noise (the plant is
    not quite of this structure: a drift, curved borders), the type is chosen by the
    quasi-likelihood BIC ``chi^2 / c + k ln n`` with ``c`` the best fit's ``chi^2/dof``; the
@@ -973,6 +974,8 @@ class NonlinearEstimator:
                     theta, chi2 = fits[i]
                     table.append(_Candidate(kind, p, theta, chi2, chi2 + (p + 3) * math.log(n),
                                             routes[0], amb, ja_p, jd_p))
+            if self.method == "nls" and self.degree is None:
+                table += self._beyond_eq11(kind, [c for c in table if c.kind == kind], data, grids)
         if not table:
             raise NonlinearIdentificationError("no model could be fitted to the staircase data")
 
@@ -1018,9 +1021,13 @@ class NonlinearEstimator:
         best = min((c for c in pool if c.kind == kind), key=lambda c: c.bic)
         p = best.p
         theta = best.theta
-        if self.degree is None and p == pmax_up and p < self.max_degree:
+        if self.degree is None and p == pmax_up and p < self.max_degree and not any(c.p > p for c in pool):
             warns.append(f"the selected degree p = {p} is the highest the N - j_a = {n_border_up} ascending border "
                          "levels support (eq. 11); a higher degree could not be tested: add levels to check it")
+        elif p > pmax_up:
+            warns.append(f"the selected degree p = {p} is above the {pmax_up} that the N - j_a = {n_border_up} "
+                         "ascending border levels support alone (eq. 11): it rests on the joint fit of both "
+                         "staircases; add ascending levels to check it")
 
         if best.ambiguous:
             warns.append("several roots of the fitted h(u - d^+) give equally good models whose h has no other zero "
@@ -1084,6 +1091,45 @@ class NonlinearEstimator:
         self.flat_up_, self.flat_down_ = r.flat_up, r.flat_down
         self.selection_ = table
         return self
+
+    def _beyond_eq11(self, kind, done, data, grids) -> list:
+        """Degrees above eq. (11)'s limit, for the joint fit only, while the highest degree fitted
+        still misfits (chi2 p < 1e-3).
+
+        Eq. (11) bounds ``p`` by the ascending border levels because the closed form fits ``h``
+        on them alone; the joint fit also sees the descending border, whose levels sample ``h`` at
+        other ``w``. When the borders leave few ascending levels (a deadzone or a bent border moving
+        a level onto the horizontal path), a quintic ``h`` was cut to degree 4 and every later stage
+        inherited the misfit. Each further degree starts from the one below (``c_p = 0``) and from
+        the grid of :func:`_grid_starts`, and is kept while its coefficient is significant by the F
+        test of nested fits (level ``alpha``; the scale is the misfit, chi2/dof: a level that did not
+        settle made BIC add four degrees for a drop of chi2 from 73 to 34, and the degree-9 ``h``
+        extrapolated wildly); at most ``max_degree``, and ``n - p - 3 >= 2`` dof."""
+        out: list[_Candidate] = []
+        n = data.X.size
+        if not done:
+            return out
+        last = max(done, key=lambda c: c.p)
+        while True:
+            p = last.p + 1
+            dof_last = n - (last.p + 3)
+            if p > self.max_degree or n - (p + 3) < 2 or not np.isfinite(last.chi2) \
+                    or last.chi2 <= stats.chi2.isf(1e-3, dof_last):
+                return out
+            if kind not in grids:
+                grids[kind] = _grid_V(kind, data)
+            th0 = np.concatenate([last.theta[:-3], [0.0], last.theta[-3:]])
+            fits = [_nls(kind, th, data) for th in [th0] + _grid_starts(kind, p, data, grids[kind])]
+            i, amb = _pick(kind, fits, data)
+            theta, chi2 = fits[i]
+            # the added coefficient must be significant by the F test of nested fits, whose scale is
+            # the misfit itself (chi2 / dof), not the noise: under a misfit BIC takes any small drop
+            dof = n - (p + 3)
+            if not (np.isfinite(chi2) and chi2 < last.chi2
+                    and stats.f.sf((last.chi2 - chi2) / max(chi2 / dof, 1e-300), 1, dof) < self.alpha):
+                return out
+            last = _Candidate(kind, p, theta, chi2, chi2 + (p + 3) * math.log(n), last.route, amb, last.j_a, last.j_d)
+            out.append(last)
 
     def _paper_cov(self, kind, p, data, j_a, j_d, a, b) -> np.ndarray:
         """Delta method through the closed form: ``J diag(se^2) J^T`` with ``J = d theta / d X_hat``."""
