@@ -236,6 +236,15 @@ def test_drift_is_additive_against_a_wandering_gain():
     gain_pairs = [(g() * x + noise(), g() * x + noise(), mask) for _ in range(3)]
     r = drift_is_additive(gain_pairs, [x] * 3, width=150, sigma=sigma)
     assert not r["additive"] and r["output_share"] > 0.5 and r["fast_share"] > 0.5
+    # a gain that differs by 12 % between the repeats while an additive wander (time constant 20 s,
+    # s.d. 0.15) that a cubic in time cannot follow also moves one of them: the slow share falls
+    # below one half, yet every step of x is scaled: the fast share alone decides (the old rule asked
+    # both, and let such a gain pass as a drift: slow 0.42, fast 0.64 on a blind rig)
+    from scipy import signal
+    b = np.exp(-dt / 20.0)
+    wander = signal.lfilter([1.0], [1.0, -b], rng.standard_normal(n) * 0.15 * np.sqrt(1 - b * b))
+    r = drift_is_additive([(1.06 * x + wander + noise(), 0.94 * x + noise(), mask)], [x], width=150, sigma=sigma)
+    assert r["output_share"] < 0.5 and r["fast_share"] > 0.5 and not r["additive"], r
 
 
 def test_noise_floor_limit_scales_with_the_measured_output():
