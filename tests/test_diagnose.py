@@ -277,3 +277,26 @@ def test_sine_names_are_unique_when_an_amplitude_is_capped(tmp_path):
     names = [e.name for e in X.design(cfg, model, d)]
     assert len(names) == len(set(names))
     assert sum(n.startswith("sine_validation_A0.8_") for n in names) >= 3
+
+
+def test_mirror_rhp_zeros_keeps_the_gain_and_gives_the_delay():
+    """A rational G that took a delay as excess phase has zeros in the right half plane; mirrored,
+    |G(jw)| and G(0) stay and the phase lag they added goes: for (1 - s/z) that lag is
+    2 atan(w/z), a delay of 2/z at low frequency; a complex pair a +- jb adds 2 * 2a/(a^2 + b^2)."""
+    from hwid.diagnose.rank import mirror_rhp_zeros
+    w = np.array([0.01, 0.3, 1.0, 3.0, 10.0])
+    s = 1j * w
+    num = np.polymul([-1 / 8.0, 1.0], [1 / 2.0, 1.0])             # zeros at +8 and -2
+    new, hint = mirror_rhp_zeros(num)
+    assert hint == pytest.approx(2 / 8.0)
+    assert np.allclose(np.abs(np.polyval(new, s)), np.abs(np.polyval(num, s)))
+    assert np.polyval(new, 0.0) == pytest.approx(np.polyval(num, 0.0))
+    lag = np.angle(np.polyval(new, s)) - np.angle(np.polyval(num, s))
+    assert np.allclose(lag, 2 * np.arctan(w / 8.0))
+    pair = np.real(np.poly([0.5 + 4j, 0.5 - 4j]))                 # a lightly damped pair in the RHP
+    new, hint = mirror_rhp_zeros(pair)
+    assert hint == pytest.approx(2 * 2 * 0.5 / (0.25 + 16.0))
+    assert np.all(np.roots(new).real < 0)
+    assert np.allclose(np.abs(np.polyval(new, s)), np.abs(np.polyval(pair, s)))
+    same, none = mirror_rhp_zeros([1 / 3.0, 1.0])                  # minimum phase: left as it is
+    assert none == 0.0 and np.allclose(same, [1 / 3.0, 1.0])

@@ -57,6 +57,22 @@ def excess(gap_rms: float, sigma: float) -> float:
     return float(np.sqrt(max(gap_rms * gap_rms - sigma * sigma, 0.0)))
 
 
+def mirror_rhp_zeros(num) -> tuple[np.ndarray, float]:
+    """The numerator with its zeros in the right half plane mirrored to ``-conj(z)``, scaled so that
+    its value at ``s = 0`` is kept (so ``|G(jw)|`` and ``G(0)`` are unchanged), and the group delay at
+    ``w = 0`` that those zeros gave, ``sum 2 Re(z) / |z|^2`` (0 when there were none)."""
+    num = np.trim_zeros(np.asarray(num, float), "f")
+    if num.size < 2 or num[-1] == 0:
+        return num, 0.0
+    z = np.roots(num)
+    rhp = z.real > 1e-9 * np.maximum(np.abs(z), 1.0)
+    if not np.any(rhp):
+        return num, 0.0
+    hint = float(np.sum(2 * z[rhp].real / np.abs(z[rhp]) ** 2))
+    new = np.real(np.poly(np.where(rhp, -np.conj(z), z)))
+    return new * (num[-1] / new[-1]), hint
+
+
 def explained_fraction(gap_before: float, gap_after: float, sigma: float) -> float:
     """``1 - excess(after) / excess(before)``, clipped to [0, 1]: the share of the gap above the
     noise floor that an effect removes."""
@@ -140,6 +156,7 @@ class EffectFitter:
             if self.refit_g:
                 self.g_p = self._fit_baseline_g()
                 self._strip_modes(band)
+                self._strip_rhp_zeros()
             self.baseline_val = self._refit_predict(None, None, "val")
             self.baseline_fit = self._refit_predict(None, None, "fit")
             self.gap_ref = rms(np.concatenate([(y - x)[m] for y, x, m in zip(self.yv, self.baseline_val, self.mv)]))
@@ -333,6 +350,28 @@ class EffectFitter:
         self._init_g(F, LinearBlock(tuple(num.tolist()), tuple(den_red.tolist()), G.delay))
         self.g_p = self._fit_baseline_g()
 
+    def _strip_rhp_zeros(self) -> None:
+        """Mirror zeros of the refit G in the right half plane into the left one.
+
+        A transport delay is inside the paper's structure as well (G(jw) is any frequency response),
+        and a rational G fitted to the harmonics takes it as excess phase: a zero ``z`` with
+        ``Re z > 0`` (``(1 - s/z) / (1 + s/z)`` is the first Pade approximant of ``exp(-2 s / z)``);
+        the refit keeps its coefficients' signs, so no effect is left to explain it (a delay of 0.15 s
+        on a second-order plant was called ``none`` on four blind rigs). The catalogue's
+        ``time_delay`` is that excess phase, so each such zero is mirrored to ``-conj(z)`` (``|G(jw)|``
+        and ``G(0)`` unchanged, the excess phase gone), F and G are refit from there, and the group
+        delay the zeros gave, ``sum 2 Re(z) / |z|^2``, is a starting point of ``time_delay``, which
+        must then earn it back on the validation data like any other effect."""
+        self.delay_hint = 0.0
+        F, G = self.input_nl(self.g_p), self.linear(self.g_p)
+        new, hint = mirror_rhp_zeros(G.num)
+        if hint <= 0:
+            return
+        from hwid.blocks.linear import LinearBlock
+        self._init_g(F, LinearBlock(tuple(new.tolist()), tuple(np.asarray(G.den, float).tolist()), G.delay))
+        self.g_p = self._fit_baseline_g()
+        self.delay_hint = hint
+
     def _with_x(self, sim, xs):
         new = object.__new__(type(sim))
         new.__dict__.update(sim.__dict__)
@@ -382,6 +421,8 @@ class EffectFitter:
         starts = eff.starts(self.scale)
         if eff.name == "resonance" and getattr(self, "modes", None):    # the modes taken out of G
             starts = list(starts) + [np.array(m, float) for m in self.modes]
+        if eff.name == "time_delay" and getattr(self, "delay_hint", 0.0) > 0:   # the excess phase taken out
+            starts = list(starts) + [np.array([self.delay_hint])]
         if self.refit_g:   # G's parameters after the effect's, starting from the baseline's G
             glo, ghi = self._g_bounds()
             lo, hi = np.r_[lo, glo], np.r_[hi, ghi]
