@@ -300,6 +300,28 @@ def test_steady_state_detection_finds_the_transient():
     assert st.settled.all()
 
 
+def test_levels_that_do_not_settle_are_extrapolated():
+    """Holds of 2.5 time constants (a slow G behind a sensor lag): at half the hold each level is
+    still 30 % of its step away. The plain average of the second half is 7-8 of the extrapolation's
+    standard errors off (and hundreds of its own); the exponential approach fitted with one time
+    constant for all of them lands on the steady states within their standard errors (which carry
+    the time constant's uncertainty), and a settled level keeps its plain average."""
+    rng = np.random.default_rng(np.random.SeedSequence(11))
+    n, tau = 500, 200.0
+    t = np.arange(n)
+    targets, steps = [0.1, -0.4, 0.7, 0.25], [0.6, -0.5, 1.1, -0.45]
+    segs = [x + a * np.exp(-t / tau) + 0.01 * rng.standard_normal(n) for x, a in zip(targets, steps)]
+    segs.append(0.5 + 0.01 * rng.standard_normal(n))                     # settled
+    st = steady_levels(segs)
+    assert not st.settled[:4].any() and st.settled[4]
+    assert any("extrapolated" in w for w in st.warnings)
+    for j, x in enumerate(targets):
+        assert abs(st.mean[j] - x) < 3 * st.se[j], (j, st.mean[j], st.se[j])
+        plain = segs[j][n // 2:].mean()
+        assert abs(plain - x) > 5 * st.se[j]
+    assert abs(st.mean[4] - 0.5) < 3 * st.se[4]
+
+
 def test_external_plant_and_journal(tmp_path, monkeypatch):
     import sys
     monkeypatch.syspath_prepend(str(__import__("pathlib").Path(__file__).resolve().parent))

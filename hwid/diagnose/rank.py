@@ -325,7 +325,9 @@ class EffectFitter:
         if den.size < 3:
             return
         roots = np.roots(den)
-        keep, modes = [], []
+        num = np.trim_zeros(np.asarray(G.num, float), "f")
+        zeros = list(np.roots(num)) if num.size > 1 else []
+        keep, modes, cancelled = [], [], False
         for r in roots:
             if r.imag < -1e-12 * abs(r):
                 continue
@@ -333,16 +335,26 @@ class EffectFitter:
             if r.imag > 1e-12 * wn and wn > 0:
                 z = -r.real / wn
                 if z < self.ZETA_LIGHT and not lo <= wn <= hi:
-                    modes.append((float(wn), float(max(z, 1e-3))))
+                    # a complex zero pair within 20 % of the pair's frequency cancels it: an artefact
+                    # of the rational fit (a pole-zero pair outside the band), not a mode; both go
+                    near = [q for q in zeros if q.imag > 1e-12 * abs(q) and abs(abs(q) / wn - 1) < 0.2]
+                    if near:
+                        q = min(near, key=lambda q: abs(abs(q) - wn))
+                        zeros = [x for x in zeros if not (np.isclose(x, q) or np.isclose(x, np.conj(q)))]
+                        cancelled = True
+                    else:
+                        modes.append((float(wn), float(max(z, 1e-3))))
                     continue
                 keep += [r, np.conj(r)]
             else:
                 keep.append(r)
-        if not modes:
+        if not modes and not cancelled:
             return
         den_red = np.real(np.poly(keep)) if keep else np.array([1.0])
         den_red = den_red / den_red[-1]
-        num = np.trim_zeros(np.asarray(G.num, float), "f")
+        if cancelled:       # G(0) = 1 kept: the pair's static gain goes with it
+            num = np.real(np.poly(zeros)) if zeros else np.array([1.0])
+            num = num / num[-1]
         if num.size > den_red.size:      # the pair cannot go without making G improper
             return
         from hwid.blocks.linear import LinearBlock
@@ -434,6 +446,16 @@ class EffectFitter:
             r = self._residual(eff, th)
             costs.append((float(r @ r), th))
         costs.sort(key=lambda c: c[0])
+        if self.refit_g and np.any(self.g_p != 0):
+            # the baseline's refit bends F and G towards what the model misses (borders shifted and
+            # G slowed to mimic a rate limit): each effect is also started from the identified F and
+            # G, with its three best own starts
+            ne = len(eff.params)
+            for _, th in costs[:3]:
+                t2 = np.clip(np.r_[th[:ne], np.zeros(self.n_g)], lo, hi)
+                r = self._residual(eff, t2)
+                costs.append((float(r @ r), t2))
+            costs.sort(key=lambda c: c[0])
         best_cost, best = costs[0]
         for c0, th0 in costs[:2]:
             x0 = self._to_unit(th0, lo, hi, logs)
