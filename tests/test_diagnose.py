@@ -300,3 +300,26 @@ def test_mirror_rhp_zeros_keeps_the_gain_and_gives_the_delay():
     assert np.allclose(np.abs(np.polyval(new, s)), np.abs(np.polyval(pair, s)))
     same, none = mirror_rhp_zeros([1 / 3.0, 1.0])                  # minimum phase: left as it is
     assert none == 0.0 and np.allclose(same, [1 / 3.0, 1.0])
+
+
+def test_split_modes_takes_out_modes_and_cancels_artefacts():
+    """Outside the band (0.02-0.2 rad/s) a lightly damped pair is a mode, taken out of G and offered
+    to ``resonance``; one that a zero pair at its frequency cancels (a stage 2 fit gave poles at
+    0.0155 rad/s, zeta 0.044, and zeros at 0.0155 rad/s) is an artefact: both go, no mode. A
+    well-damped pair, or a light one inside the band, stays."""
+    from hwid.diagnose.rank import split_modes
+    base = np.array([10.0, 7.0, 1.0])
+    mode = np.array([1 / 1.0 ** 2, 2 * 0.05 / 1.0, 1.0])                       # omega_n 1, zeta 0.05
+    num, den, modes, canc = split_modes([1.0], np.polymul(base, mode), (0.02, 0.2), 0.3)
+    assert not canc and len(modes) == 1
+    assert modes[0][0] == pytest.approx(1.0) and modes[0][1] == pytest.approx(0.05)
+    assert np.allclose(den, base)
+    slow = np.array([1 / 0.0155 ** 2, 2 * 0.044 / 0.0155, 1.0])
+    zpair = np.array([1 / 0.0157 ** 2, 2 * 0.3 / 0.0157, 1.0])
+    num, den, modes, canc = split_modes(zpair, np.polymul(base, slow), (0.02, 0.2), 0.3)
+    assert canc and not modes
+    assert np.allclose(den, base) and np.allclose(num, [1.0])
+    inside = np.array([1 / 0.1 ** 2, 2 * 0.05 / 0.1, 1.0])
+    damped = np.array([1 / 1.0 ** 2, 2 * 0.6 / 1.0, 1.0])
+    num, den, modes, canc = split_modes([1.0], np.polymul(inside, damped), (0.02, 0.2), 0.3)
+    assert not canc and not modes and np.allclose(den, np.polymul(inside, damped))

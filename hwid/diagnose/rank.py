@@ -57,6 +57,42 @@ def excess(gap_rms: float, sigma: float) -> float:
     return float(np.sqrt(max(gap_rms * gap_rms - sigma * sigma, 0.0)))
 
 
+def split_modes(num, den, band, zeta_light: float):
+    """G's lightly damped pole pairs (``zeta < zeta_light``) with ``omega_n`` outside ``band``,
+    taken out: ``(num, den, modes, cancelled)`` with ``den`` (and, when a pair was cancelled,
+    ``num``) normalised to 1 at ``s = 0``, ``modes`` the ``(omega_n, zeta)`` taken out, and
+    ``cancelled`` whether a pair went with a complex zero pair within 20 % of its frequency (an
+    artefact of the rational fit, not a mode: both leave G and the pair is not in ``modes``)."""
+    lo, hi = float(min(band)), float(max(band))
+    num = np.trim_zeros(np.asarray(num, float), "f")
+    zeros = list(np.roots(num)) if num.size > 1 else []
+    keep, modes, cancelled = [], [], False
+    for r in np.roots(np.asarray(den, float)):
+        if r.imag < -1e-12 * abs(r):
+            continue
+        wn = abs(r)
+        if r.imag > 1e-12 * wn and wn > 0:
+            z = -r.real / wn
+            if z < zeta_light and not lo <= wn <= hi:
+                near = [q for q in zeros if q.imag > 1e-12 * abs(q) and abs(abs(q) / wn - 1) < 0.2]
+                if near:
+                    q = min(near, key=lambda q: abs(abs(q) - wn))
+                    zeros = [x for x in zeros if not (np.isclose(x, q) or np.isclose(x, np.conj(q)))]
+                    cancelled = True
+                else:
+                    modes.append((float(wn), float(max(z, 1e-3))))
+                continue
+            keep += [r, np.conj(r)]
+        else:
+            keep.append(r)
+    den_red = np.real(np.poly(keep)) if keep else np.array([1.0])
+    den_red = den_red / den_red[-1]
+    if cancelled:       # G(0) = 1 kept: the pair's static gain goes with it
+        num = np.real(np.poly(zeros)) if zeros else np.array([1.0])
+        num = num / num[-1]
+    return num, den_red, modes, cancelled
+
+
 def mirror_rhp_zeros(num) -> tuple[np.ndarray, float]:
     """The numerator with its zeros in the right half plane mirrored to ``-conj(z)``, scaled so that
     its value at ``s = 0`` is kept (so ``|G(jw)|`` and ``G(0)`` are unchanged), and the group delay at
@@ -324,37 +360,9 @@ class EffectFitter:
         den = np.asarray(G.den, float)
         if den.size < 3:
             return
-        roots = np.roots(den)
-        num = np.trim_zeros(np.asarray(G.num, float), "f")
-        zeros = list(np.roots(num)) if num.size > 1 else []
-        keep, modes, cancelled = [], [], False
-        for r in roots:
-            if r.imag < -1e-12 * abs(r):
-                continue
-            wn = abs(r)
-            if r.imag > 1e-12 * wn and wn > 0:
-                z = -r.real / wn
-                if z < self.ZETA_LIGHT and not lo <= wn <= hi:
-                    # a complex zero pair within 20 % of the pair's frequency cancels it: an artefact
-                    # of the rational fit (a pole-zero pair outside the band), not a mode; both go
-                    near = [q for q in zeros if q.imag > 1e-12 * abs(q) and abs(abs(q) / wn - 1) < 0.2]
-                    if near:
-                        q = min(near, key=lambda q: abs(abs(q) - wn))
-                        zeros = [x for x in zeros if not (np.isclose(x, q) or np.isclose(x, np.conj(q)))]
-                        cancelled = True
-                    else:
-                        modes.append((float(wn), float(max(z, 1e-3))))
-                    continue
-                keep += [r, np.conj(r)]
-            else:
-                keep.append(r)
+        num, den_red, modes, cancelled = split_modes(G.num, den, (lo, hi), self.ZETA_LIGHT)
         if not modes and not cancelled:
             return
-        den_red = np.real(np.poly(keep)) if keep else np.array([1.0])
-        den_red = den_red / den_red[-1]
-        if cancelled:       # G(0) = 1 kept: the pair's static gain goes with it
-            num = np.real(np.poly(zeros)) if zeros else np.array([1.0])
-            num = num / num[-1]
         if num.size > den_red.size:      # the pair cannot go without making G improper
             return
         from hwid.blocks.linear import LinearBlock
