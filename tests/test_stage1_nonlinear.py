@@ -494,22 +494,11 @@ def test_curved_borders_on_an_inverse_keep_h_zero_at_zero(amplitude):
     assert any("set aside" in w for w in res.warnings)
 
 
-FEW_UP = """
-name: few-up
-seed: 3
-sampling: {dt: 0.02}
-plant:
-  kind: hammerstein_wiener
-  input_nonlinearity: {type: backlash, slope_up: 1.0, slope_down: 1.0, d_plus: 0.3, d_minus: -0.3}
-  linear: {num: [3.0], den: [1.0, 4.0, 5.0, 3.0]}
-  output_nonlinearity: {polynomial: [0, 1.0, 0, -0.25, 0, 0.03]}
-  noise: {std: 0.01}
-protocols:
-  staircase:
-    levels_up: [-1.5, -1.35, -1.2, -1.05, -0.95, -0.45, 0.0, 0.5, 1.0, 1.5]
-    levels_down: [1.5, 1.2, 0.9, 0.6, 0.3, 0.0, -0.3, -0.6, -0.9, -1.2, -1.5]
-    hold: 15.0
-"""
+# the plant of DRIFTY without its drift, with five ascending levels on the horizontal path
+FEW_UP = (DRIFTY.replace("name: drifty", "name: few-up").replace("seed: SEED", "seed: 3")
+          .replace("levels_up: [-1.5, -1.1667, -0.8333, -0.5, -0.1667, 0.1667, 0.5, 0.8333, 1.1667, 1.5]",
+                   "levels_up: [-1.5, -1.35, -1.2, -1.05, -0.95, -0.45, 0.0, 0.5, 1.0, 1.5]")
+          .replace("hold: 6.0", "hold: 15.0"))
 
 
 def test_degree_above_eq_11_from_the_joint_fit():

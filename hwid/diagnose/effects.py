@@ -129,12 +129,10 @@ def _direction_arrays(z, up, dn, u0):
     return out
 
 
-def rate_limited(u, rate: float, dt: float, start: float | None = None) -> np.ndarray:
-    """An actuator slewing at most ``rate`` units/s, starting at ``start`` (default ``u[0]``)."""
+def rate_limited(u, rate: float, dt: float) -> np.ndarray:
+    """An actuator slewing at most ``rate`` units/s, starting at ``u[0]``."""
     u = np.ascontiguousarray(u, float)
-    if not u.size:
-        return u.copy()
-    return _rate_limit(u, float(rate) * dt, float(u[0] if start is None else start))
+    return _rate_limit(u, float(rate) * dt, float(u[0])) if u.size else u.copy()
 
 
 def deadzone(u, delta: float) -> np.ndarray:
@@ -301,15 +299,12 @@ class RateLimit(Effect):
         return _grid(np.geomspace(lo[0], hi[0], 14), [0.0, 1.0])
 
     def simulate(self, sim, theta, i):
-        u = sim.inputs[i]
-        c = float(theta[1])
-        fresh = sim.from_input(rate_limited(u, theta[0], sim.dt)) if c < 1 else 0.0
-        prev = sim.before(i)
+        u, c, prev = sim.inputs[i], float(theta[1]), sim.before(i)
+        fresh = sim.from_input(rate_limited(u, theta[0], sim.dt))
         if c <= 0 or prev is None or not prev.size:
-            return fresh if c < 1 else sim.from_input(rate_limited(u, theta[0], sim.dt))
-        uu = np.concatenate([prev, u])
-        carried = sim.from_input(rate_limited(uu, theta[0], sim.dt))[prev.size:]
-        return carried if c >= 1 else fresh + c * (carried - fresh)
+            return fresh
+        carried = sim.from_input(rate_limited(np.concatenate([prev, u]), theta[0], sim.dt))[prev.size:]
+        return fresh + c * (carried - fresh)
 
 
 class InputDeadzone(Effect):
