@@ -287,10 +287,10 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
         # the noise). With h, F and G re-estimated on the diagnosis's fit experiments the model
         # leaves noise alone on a plain rig, so the test is the same as for a trusted simulator
     test = Gp.gap_test(gap_ref, n_val, nf)
-    if getattr(fitter, "delay_hint", 0.0) > 0:
+    if fitter.delay_hint > 0:
         echo(f"the refit G had zeros in the right half plane (excess phase, as a delay of {fitter.delay_hint:.3g} s "
              "gives): mirrored into the left half plane in the baseline, left to the time_delay effect")
-    for wn, z in getattr(fitter, "modes", []):
+    for wn, z in fitter.modes:
         echo(f"the refit G has a lightly damped mode outside the identified band (omega_n = {wn:.4g} rad/s, "
              f"zeta = {z:.3g}): taken out of the baseline, left to the resonance effect")
     echo(f"gap before {gap_before:.4g}" + (f" ({'h, F and G' if fitter.refit_g else 'h'} re-estimated: {gap_ref:.4g})"
@@ -363,7 +363,7 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
         "gap_model_refit": float(gap_ref),
         "model_refit": ({**fitter.model_dict(fitter.g_p),
                          "modes_taken_out": [{"omega_n": w, "zeta": z} for w, z in fitter.modes],
-                         "excess_phase_taken_out_s": float(getattr(fitter, "delay_hint", 0.0))}
+                         "excess_phase_taken_out_s": float(fitter.delay_hint)}
                         if fitter.refit_g else None),
         "where": where,
         "candidates": [{**c.to_dict(), "eligible": bool(c.effect != "drift" or drift_ok)} for c in cands],

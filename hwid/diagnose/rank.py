@@ -179,6 +179,10 @@ class EffectFitter:
         self.gap_ref = self.gap_before
         self.refit_g = False
         self.g_p = np.zeros(0)
+        # taken out of the refit G and left to the effects: lightly damped modes (resonance), the
+        # group delay of right-half-plane zeros (time_delay)
+        self.modes: list[tuple[float, float]] = []
+        self.delay_hint = 0.0
         if self.refit_h and refit_g:
             self._init_g(sim_fit.model.input, sim_fit.model.linear)
         if self.refit_h:
@@ -188,7 +192,6 @@ class EffectFitter:
             self.degree = max(len(h.coefficients) - 1, 1)
             wf = np.concatenate([w[m] for w, m in zip(sim_fit.w, self.mf)])
             self._w_c, self._w_r = 0.5 * (wf.max() + wf.min()), max(0.5 * (wf.max() - wf.min()), 1e-12)
-            self.modes: list[tuple[float, float]] = []
             if self.refit_g:
                 self.g_p = self._fit_baseline_g()
                 self._strip_modes(band)
@@ -382,7 +385,6 @@ class EffectFitter:
         and ``G(0)`` unchanged, the excess phase gone), F and G are refit from there, and the group
         delay the zeros gave, ``sum 2 Re(z) / |z|^2``, is a starting point of ``time_delay``, which
         must then earn it back on the validation data like any other effect."""
-        self.delay_hint = 0.0
         F, G = self.input_nl(self.g_p), self.linear(self.g_p)
         new, hint = mirror_rhp_zeros(G.num)
         if hint <= 0:
@@ -439,9 +441,9 @@ class EffectFitter:
         lo, hi = eff.bounds(self.scale)
         logs = eff.log_params()
         starts = eff.starts(self.scale)
-        if eff.name == "resonance" and getattr(self, "modes", None):    # the modes taken out of G
+        if eff.name == "resonance" and self.modes:    # the modes taken out of G
             starts = list(starts) + [np.array(m, float) for m in self.modes]
-        if eff.name == "time_delay" and getattr(self, "delay_hint", 0.0) > 0:   # the excess phase taken out
+        if eff.name == "time_delay" and self.delay_hint > 0:   # the excess phase taken out
             starts = list(starts) + [np.array([self.delay_hint])]
         if self.refit_g:   # G's parameters after the effect's, starting from the baseline's G
             glo, ghi = self._g_bounds()

@@ -42,8 +42,10 @@ The estimator (:class:`NonlinearEstimator`)
 5. Degree ``p`` and type (Backlash / Backlash-Inverse, Remark 1.4) by BIC of the joint fit
    ``chi^2 + k ln n``, ``p`` limited by eq. (11) (``N - j_a >= p + 1``) unless the joint fit
    at that limit still misfits: then higher degrees are fitted jointly (both staircases sample
-   ``h``) while the misfit lasts and each added coefficient passes an F test; a configured degree overrides the selection. Fits whose ``h_bar`` has another real zero where the data go are set
-   aside while one that keeps Remark 1.3 exists. When no candidate fits within noise (the plant is
+   ``h``) while the misfit lasts and each added coefficient passes an F test; each degree's fit
+   also starts from the one below with ``c_p = 0``. A configured degree overrides the selection.
+   Fits whose ``h_bar`` has another real zero where the data go are set aside while one that keeps
+   Remark 1.3 exists. When no candidate fits within noise (the plant is
    not quite of this structure: a drift, curved borders), the type is chosen by the
    quasi-likelihood BIC ``chi^2 / c + k ln n`` with ``c`` the best fit's ``chi^2/dof``; the
    degree within the type still by the BIC.
@@ -774,6 +776,11 @@ def _grid_starts(kind: str, p: int, data: _Data, grid=None, keep: int = 3) -> li
     return out
 
 
+def _one_degree_up(theta: np.ndarray) -> np.ndarray:
+    """``(c_1..c_p, d^+, S^d, d^-)`` as the same model of degree ``p + 1`` (``c_{p+1} = 0``)."""
+    return np.concatenate([theta[:-3], [0.0], theta[-3:]])
+
+
 # ------------------------------------------------------------------------------- the estimator
 
 def _overdispersion(cands, n: int) -> Optional[float]:
@@ -974,8 +981,7 @@ class NonlinearEstimator:
                     if below and min(f[1] for f in fits) > below[0].chi2:
                         # nested: degree p - 1 with c_p = 0 is a degree-p model, so the fit never
                         # ends worse than the one below (a start in another basin had left 4386 vs 2502)
-                        th = below[0].theta
-                        fits.append(_nls(kind, np.concatenate([th[:-3], [0.0], th[-3:]]), data))
+                        fits.append(_nls(kind, _one_degree_up(below[0].theta), data))
                     i, amb = _pick(kind, fits, data)
                     theta, chi2 = fits[i]
                     table.append(_Candidate(kind, p, theta, chi2, chi2 + (p + 3) * math.log(n),
@@ -1124,8 +1130,8 @@ class NonlinearEstimator:
                 return out
             if kind not in grids:
                 grids[kind] = _grid_V(kind, data)
-            th0 = np.concatenate([last.theta[:-3], [0.0], last.theta[-3:]])
-            fits = [_nls(kind, th, data) for th in [th0] + _grid_starts(kind, p, data, grids[kind])]
+            starts = [_one_degree_up(last.theta)] + _grid_starts(kind, p, data, grids[kind])
+            fits = [_nls(kind, th, data) for th in starts]
             i, amb = _pick(kind, fits, data)
             theta, chi2 = fits[i]
             # the added coefficient must be significant by the F test of nested fits, whose scale is

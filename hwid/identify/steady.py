@@ -16,6 +16,9 @@ data, in two steps per level:
    samples averaged are not the ones whose look decided the cut (without it the data-driven cut
    biases the mean by up to half a standard error and inflates its spread by 10-20 %; measured on
    the paper's plant over 120 runs, the 95 % interval's miss rate drops from 6.2 % to 5.1 %).
+4. **Extrapolation**: levels still drifting at half their hold (a G slower than the hold) get their
+   steady state from ``y = X + A exp(-t / tau)`` fitted to what is kept, one ``tau`` for them all,
+   the standard error of ``X`` widened by ``tau``'s own uncertainty (:func:`_extrapolate`).
 
 What follows is averaged (eq. 9). The standard error uses **batch means**: the retained samples
 are cut into ``K`` batches, ``lrv = b var(batch means)`` estimates the long-run variance (the
