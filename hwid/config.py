@@ -280,13 +280,20 @@ def _physics(cfg: Config) -> list[tuple[str, str]]:
     return errs
 
 
+def _key_text(key: Any) -> str:
+    """A key as the message shows it: as written if plain, else quoted with escapes (so that a key
+    holding a newline or a control character cannot break the one-line message)."""
+    text = str(key)
+    return text if text and text.isprintable() and text.strip() == text else repr(text)
+
+
 def _loc(loc: tuple) -> str:
     out = ""
     for part in loc:
         if isinstance(part, int):
             out += f"[{part}]"
         else:
-            out += ("." if out else "") + str(part)
+            out += ("." if out else "") + _key_text(part)
     return out
 
 
@@ -335,7 +342,9 @@ def _first_error(err: ValidationError) -> tuple[str, str]:
         if owner is not None:
             close = difflib.get_close_matches(str(key), _valid_keys(owner), n=1, cutoff=0.5)
             hint = f" (did you mean '{close[0]}'?)" if close else f" (valid keys: {', '.join(_valid_keys(owner))})"
-        return _loc(loc), f"unknown key '{key}'{hint}"
+        shown = _key_text(key)
+        quoted = shown if shown != str(key) else f"'{shown}'"
+        return _loc(loc), f"unknown key {quoted}{hint}"
     if kind == "missing":
         return _loc(loc), "required key is missing"
     msg = e["msg"]

@@ -72,6 +72,9 @@ CONFIG_CASES = [
     ("misspelt-slope", {"plant.input_nonlinearity.slope_upp": 1.0}, "plant.input_nonlinearity.slope_upp",
      "did you mean 'slope_up'?"),
     ("unknown-key-lists-valid", {"plant.noise.zzzz": 1}, "plant.noise.zzzz", "valid keys: std, ar"),
+    # a key holding a newline or a tab is shown escaped, so the message stays one line
+    ("unknown-key-newline", {"\n": 1}, "'\\n'", "unknown key '\\n' (valid keys: name, seed"),
+    ("unknown-key-tab", {"plant.noise.a\tb": 1}, "plant.noise.'a\\tb'", "unknown key 'a\\tb'"),
     ("missing-required", {"sampling.dt": D}, "sampling.dt", "required key is missing"),
     ("missing-plant", {"plant": D}, "plant", "required key is missing"),
     # wrong types
