@@ -138,3 +138,50 @@ def resonance(u, dt):
     u = np.asarray(u, float)
     t = TRUTH["resonance"]
     return r.base(u, dt, mode=(t["omega_n"], t["zeta"])) + r.noise(u.size)
+
+
+class _InverseRig(_Rig):
+    """A Backlash-Inverse geared plant (direction map: ``v = u / 1.0 + 0.2`` while u rises,
+    ``u / 1.3 - 0.3`` while it falls), ``G(s) = 1/(0.8 s + 1)``, ``h(w) = 0.8 w - 0.1 w^3``, white
+    noise 0.005; the actuator's position and the map's direction carry over from call to call."""
+
+    NOISE = 0.005
+
+    def __init__(self, seed: int):
+        super().__init__(seed)
+        self.u_prev = None
+        self.actuator = None
+
+    def inverse(self, u, dt):
+        v = np.empty_like(u)
+        g, prev = self.gear, (u[0] if self.u_prev is None else self.u_prev)
+        for i, ui in enumerate(u):
+            if ui > prev:
+                g = ui / 1.0 + 0.2
+            elif ui < prev:
+                g = ui / 1.3 - 0.3
+            prev = ui
+            v[i] = g
+        self.gear, self.u_prev = g, prev
+        a = np.exp(-dt / 0.8)
+        w = signal.lfilter([1 - a], [1, -a], np.r_[v[0], v[:-1]], zi=[a * v[0]])[0]
+        return 0.8 * w - 0.1 * w ** 3
+
+
+TRUTH["rate_limit_inverse"] = {"rate": 5.6}
+
+
+def rate_limit_inverse(u, dt):
+    """A fast actuator (5.6 units/s, carried over) before a Backlash-Inverse gear."""
+    if "rate_limit_inverse" not in _RIGS:
+        _RIGS["rate_limit_inverse"] = _InverseRig(zlib.crc32(b"rate_limit_inverse"))
+    r = _RIGS["rate_limit_inverse"]
+    u = np.asarray(u, float)
+    step = TRUTH["rate_limit_inverse"]["rate"] * dt
+    ua = np.empty_like(u)
+    p = u[0] if r.actuator is None else r.actuator
+    for i, ui in enumerate(u):
+        p += min(max(ui - p, -step), step)
+        ua[i] = p
+    r.actuator = p
+    return r.inverse(ua, dt) + r.NOISE * r.rng.standard_normal(u.size)

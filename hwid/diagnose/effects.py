@@ -221,6 +221,9 @@ class Effect:
     params: tuple[str, ...]
     description: str = ""
     disturbance: bool = False        # needs the measured output (drift)
+    # its output moves in sample-sized kinks as a parameter changes (a slew, a clip, a fractional
+    # delay): fitted with coarse finite differences first
+    kinked = False      # a class attribute, not a field
     interacts: tuple[str, ...] = field(default=())
 
     def bounds(self, sc: Scale) -> tuple[np.ndarray, np.ndarray]:
@@ -259,6 +262,8 @@ def _grid(*axes) -> list[np.ndarray]:
 
 
 class InputSaturation(Effect):
+    kinked = True
+
     def __init__(self):
         super().__init__("input_saturation", "input", ("u_lo", "u_hi"),
                          "the actuator clips u to [u_lo, u_hi] before F")
@@ -284,6 +289,8 @@ class RateLimit(Effect):
     driver may also reset the actuator at every call. ``carried`` in [0, 1] weighs the two: the
     output of the actuator started at ``u[0]`` (0) and that of the actuator run on through the end
     of the previous experiment's input (:meth:`ModelSim.before`) first (1)."""
+
+    kinked = True
 
     def __init__(self):
         super().__init__("rate_limit", "input", ("rate", "carried"), "the actuator slews at most `rate` units/s")
@@ -316,6 +323,8 @@ class InputDeadzone(Effect):
     deadzone never widens the model's play: ``absorbed = 0`` for a trusted simulator, 1 for a model
     identified on the same rig.
     """
+
+    kinked = True
 
     def __init__(self):
         super().__init__("input_deadzone", "input", ("delta", "absorbed"),
@@ -398,6 +407,8 @@ class CurvedBorders(Effect):
 
 
 class TimeDelay(Effect):
+    kinked = True
+
     def __init__(self):
         super().__init__("time_delay", "linear", ("delay_s",), "a transport delay added to G")
 
@@ -491,6 +502,8 @@ class SensorLag(Effect):
 
 class SensorSaturation(Effect):
     """The sensor clips y to ``[y_lo, y_hi]`` (``±y_max`` when symmetric)."""
+
+    kinked = True
 
     def __init__(self):
         super().__init__("sensor_saturation", "output", ("y_lo", "y_hi"), "the sensor clips y")

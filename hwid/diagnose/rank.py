@@ -134,6 +134,9 @@ class EffectFitter:
         Noise floor and the noise's correlation time (samples).
     max_samples : int
         The fit's residual vector is decimated to at most this many samples.
+    strip_identified : bool
+        Take lightly damped modes outside ``band`` out of the identified G before the baseline is
+        refit (see :func:`alternative_baseline`).
     refit_h : bool
         Re-estimate the coefficients of h (a polynomial of the model's degree) jointly with every
         effect's parameters, and measure the effects against the model with h re-estimated alone
@@ -161,12 +164,14 @@ class EffectFitter:
     ZETA_LIGHT = E.ZETA_LIGHT       # a pole pair of G below this damping ratio is a lightly damped mode
 
     def __init__(self, sim_fit, y_fit, m_fit, sim_val, y_val, m_val, names_val, scale, sigma, kappa,
-                 max_samples: int = 60000, refit_h: bool = False, refit_g: bool = False, band=None):
+                 max_samples: int = 60000, refit_h: bool = False, refit_g: bool = False, band=None,
+                 strip_identified: bool = False):
         self.sf, self.sv = sim_fit, sim_val
         self.yf, self.yv = [np.asarray(y, float) for y in y_fit], [np.asarray(y, float) for y in y_val]
         self.mf, self.mv = [np.asarray(m, bool) for m in m_fit], [np.asarray(m, bool) for m in m_val]
         self.names_val = list(names_val)
         self.scale = scale
+        self.band = band
         self.sigma, self.kappa = float(sigma), float(kappa)
         n = sum(int(m.sum()) for m in self.mf)
         self.stride = max(1, int(np.ceil(n / max_samples)))
@@ -193,6 +198,8 @@ class EffectFitter:
             wf = np.concatenate([w[m] for w, m in zip(sim_fit.w, self.mf)])
             self._w_c, self._w_r = 0.5 * (wf.max() + wf.min()), max(0.5 * (wf.max() - wf.min()), 1e-12)
             if self.refit_g:
+                if strip_identified:        # the identified G's own modes out first
+                    self._strip_modes(band, refit=False)
                 self.g_p = self._fit_baseline_g()
                 self._strip_modes(band)
                 self._strip_rhp_zeros()
@@ -345,8 +352,11 @@ class EffectFitter:
         r0 = fun(x0)
         return self._from_unit(sol.x, lo, hi, logs) if 2 * sol.cost < float(r0 @ r0) else np.zeros(self.n_g)
 
-    def _strip_modes(self, band) -> None:
-        """Take lightly damped modes outside the identified band out of the refit G.
+    def _strip_modes(self, band, refit: bool = True) -> None:
+        """Take lightly damped modes outside the identified band out of the refit G (``refit``), or
+        out of the identified G before the baseline is refit (``refit=False``: the refit may damp
+        such a pair into a plain low-pass that stands in for a slew or a lag, and then no effect
+        is left to take its place).
 
         A resonance of the plant is inside the paper's structure (G is any linear system): stage 2
         may already have put a lightly damped pair into G from the harmonics, or the refit puts one
@@ -369,9 +379,10 @@ class EffectFitter:
         if num.size > den_red.size:      # the pair cannot go without making G improper
             return
         from hwid.blocks.linear import LinearBlock
-        self.modes = modes
+        self.modes = self.modes + modes
         self._init_g(F, LinearBlock(tuple(num.tolist()), tuple(den_red.tolist()), G.delay))
-        self.g_p = self._fit_baseline_g()
+        if refit:
+            self.g_p = self._fit_baseline_g()
 
     def _strip_rhp_zeros(self) -> None:
         """Mirror zeros of the refit G in the right half plane into the left one.
@@ -467,28 +478,38 @@ class EffectFitter:
                 costs.append((float(r @ r), t2))
             costs.sort(key=lambda c: c[0])
         best_cost, best = costs[0]
-        for c0, th0 in costs[:2]:
-            x0 = self._to_unit(th0, lo, hi, logs)
-            free = hi > lo
-            if not np.any(free):
-                continue
-
+        if np.any(hi > lo):
             def fun(x):
                 return self._residual(eff, self._from_unit(x, lo, hi, logs))
-            try:
-                if self.refit_g:    # more parameters, each iteration costs more: looser stops
-                    sol = least_squares(fun, x0, bounds=(0.0, 1.0), diff_step=1e-3, x_scale=1.0,
-                                        max_nfev=20 * (len(x0) + 1), method="trf", **self.JOINT_TOL)
-                else:
-                    sol = least_squares(fun, x0, bounds=(0.0, 1.0), diff_step=1e-3, x_scale=1.0,
-                                        max_nfev=40 * (len(x0) + 1), method="trf")
-            except ValueError:
-                continue
-            c = float(2 * sol.cost)
-            if c < best_cost:
-                best_cost, best = c, self._from_unit(sol.x, lo, hi, logs)
+            starts0 = [self._to_unit(th0, lo, hi, logs) for _, th0 in costs[:2]]
+            if eff.kinked:
+                # a slew, a clip or a delay of whole and fractional samples puts small kinks into
+                # the cost, and finite differences of 1e-3 of the unit box see their slopes instead
+                # of the bowl's (a rate limit started a factor 1.5 off stopped there): coarse steps
+                # from the two best starts, then the best result polished with fine steps
+                passes = [(self.COARSE_STEP, starts0), (self.FINE_STEP, None)]
+            else:
+                passes = [(self.FINE_STEP, starts0)]
+            for step, x0s in passes:
+                for x0 in (x0s if x0s is not None else [self._to_unit(best, lo, hi, logs)]):
+                    sol = self._lsq_fit(fun, x0, step)
+                    if sol is not None and float(2 * sol.cost) < best_cost:
+                        best_cost, best = float(2 * sol.cost), self._from_unit(sol.x, lo, hi, logs)
         # the G parameters are the baseline's too: only the effect's own count
         return self._score(eff, best, len(eff.params))
+
+    COARSE_STEP, FINE_STEP = 1e-2, 1e-3     # finite-difference steps, relative, on the unit box
+
+    def _lsq_fit(self, fun, x0, step: float):
+        """Bounded least squares on the unit box (None when it cannot start)."""
+        try:
+            if self.refit_g:    # more parameters, each iteration costs more: looser stops
+                return least_squares(fun, x0, bounds=(0.0, 1.0), diff_step=step, x_scale=1.0,
+                                     max_nfev=20 * (len(x0) + 1), method="trf", **self.JOINT_TOL)
+            return least_squares(fun, x0, bounds=(0.0, 1.0), diff_step=step, x_scale=1.0,
+                                 max_nfev=40 * (len(x0) + 1), method="trf")
+        except ValueError:
+            return None
 
     def _fit_drift(self, eff: E.Drift) -> Candidate:
         """The smoother's width by generalised cross-validation on the fit data."""
@@ -582,6 +603,40 @@ class _GSim(E.ModelSim):
         if self._x is None:
             self._x = [self.model.output(w) for w in self.w]
         return self._x
+
+
+def has_outside_modes(G, band, zeta_light: float = E.ZETA_LIGHT) -> bool:
+    """Whether G has a lightly damped pole pair outside ``band`` (see :func:`split_modes`)."""
+    if band is None or len(G.den) < 3:
+        return False
+    _, _, modes, cancelled = split_modes(G.num, G.den, band, zeta_light)
+    return bool(modes or cancelled)
+
+
+def alternative_baseline(primary: list[Candidate], other: list[Candidate], gap_ref: float, sigma: float,
+                         n_eff: float) -> list[Candidate]:
+    """Each effect from whichever of two baselines fits the fit experiments better, measured against
+    the primary baseline's gap ``gap_ref`` (explained fraction and score recomputed), ranked.
+
+    The two baselines of an identified model: its G refit as it is, and its G with the lightly
+    damped modes outside the identified band taken out before the refit. Stage 2 may put a mode
+    far above the band into G where the plant slews (its harmonics fall off faster than G's); the
+    refit then damps that pair into a low-pass that stands in for the slew, and no effect is left to
+    take its place (a 5.6 units/s rate limit on a Backlash-Inverse rig, 13 rad/s above a band up to
+    2.5 rad/s, explained 0.41). Taken out before the refit, the same pair may be half of the
+    plant's dynamics (curved borders distort the harmonics of a slow plant into a pair at 0.37 rad/s
+    just above a band up to 0.2): which baseline an effect uses is decided by the fit data alone."""
+    import dataclasses
+    by = {c.effect: c for c in other}
+    out = []
+    for c in primary:
+        o = by.get(c.effect)
+        pick = o if (o is not None and np.isfinite(o.gap_fit) and o.gap_fit < c.gap_fit) else c
+        score = float(n_eff * np.log(max(gap_ref ** 2, 1e-300) / max(pick.gap_after ** 2, 1e-300))
+                      - pick.k * np.log(n_eff))
+        out.append(dataclasses.replace(pick, explained_fraction=explained_fraction(gap_ref, pick.gap_after, sigma),
+                                       score=score))
+    return rank(out)
 
 
 def fit_all(fitter: EffectFitter, effects: dict[str, E.Effect], echo=None) -> list[Candidate]:
