@@ -487,12 +487,12 @@ class EffectFitter:
                 # the cost, and finite differences of 1e-3 of the unit box see their slopes instead
                 # of the bowl's (a rate limit started a factor 1.5 off stopped there): coarse steps
                 # from the two best starts, then the best result polished with fine steps
-                passes = [(self.COARSE_STEP, starts0), (self.FINE_STEP, None)]
+                passes = [(self.COARSE_STEP, starts0, None), (self.FINE_STEP, None, self.POLISH_NFEV)]
             else:
-                passes = [(self.FINE_STEP, starts0)]
-            for step, x0s in passes:
+                passes = [(self.FINE_STEP, starts0, None)]
+            for step, x0s, nfev in passes:
                 for x0 in (x0s if x0s is not None else [self._to_unit(best, lo, hi, logs)]):
-                    sol = self._lsq_fit(fun, x0, step)
+                    sol = self._lsq_fit(fun, x0, step, nfev)
                     if sol is not None and float(2 * sol.cost) < best_cost:
                         best_cost, best = float(2 * sol.cost), self._from_unit(sol.x, lo, hi, logs)
         # the G parameters are the baseline's too: only the effect's own count
@@ -500,14 +500,23 @@ class EffectFitter:
 
     COARSE_STEP, FINE_STEP = 1e-2, 1e-3     # finite-difference steps, relative, on the unit box
 
-    def _lsq_fit(self, fun, x0, step: float):
-        """Bounded least squares on the unit box (None when it cannot start)."""
+    POLISH_NFEV = 4     # iterations of the fine polish (each costs a Jacobian: one run per parameter)
+    # iterations of a joint fit (F, G, h and an effect; the baseline's own fit is not capped): the fits
+    # that end on their own take 15-45 on the blind rigs; one still crawling after 60 is in a misfit
+    # that no effect mends (curved borders on a paper-base rig with a 0.6 deadzone, 346x the floor,
+    # ran to 100 and more, two thirds of a 425 s diagnosis, for the same result)
+    MAX_ITER = 60
+
+    def _lsq_fit(self, fun, x0, step: float, max_nfev: int | None = None):
+        """Bounded least squares on the unit box (None when it cannot start). ``max_nfev`` counts
+        iterations (scipy does not count the finite-difference Jacobian's runs)."""
         try:
             if self.refit_g:    # more parameters, each iteration costs more: looser stops
                 return least_squares(fun, x0, bounds=(0.0, 1.0), diff_step=step, x_scale=1.0,
-                                     max_nfev=20 * (len(x0) + 1), method="trf", **self.JOINT_TOL)
+                                     max_nfev=max_nfev or min(20 * (len(x0) + 1), self.MAX_ITER),
+                                     method="trf", **self.JOINT_TOL)
             return least_squares(fun, x0, bounds=(0.0, 1.0), diff_step=step, x_scale=1.0,
-                                 max_nfev=40 * (len(x0) + 1), method="trf")
+                                 max_nfev=max_nfev or 40 * (len(x0) + 1), method="trf")
         except ValueError:
             return None
 
