@@ -134,9 +134,6 @@ class EffectFitter:
         Noise floor and the noise's correlation time (samples).
     max_samples : int
         The fit's residual vector is decimated to at most this many samples.
-    strip_identified : bool
-        Take lightly damped modes outside ``band`` out of the identified G before the baseline is
-        refit (see :func:`alternative_baseline`).
     refit_h : bool
         Re-estimate the coefficients of h (a polynomial of the model's degree) jointly with every
         effect's parameters, and measure the effects against the model with h re-estimated alone
@@ -154,12 +151,24 @@ class EffectFitter:
         back, and the identification's own error in F or G would be credited to whichever flexible
         effect (curved borders) mends it. The baseline and every candidate carry the same model
         parameters, so the information criterion counts only the effect's own.
+    band : (float, float), optional
+        The sine band stage 2 identified G on, rad/s (lightly damped modes outside it are left to
+        the ``resonance`` effect).
+    strip_identified : bool
+        Take lightly damped modes outside ``band`` out of the identified G before the baseline is
+        refit (see :func:`alternative_baseline`).
     """
 
     G_FACTOR = 5.0
     # stopping rules of the joint fits (F, G, h and an effect): 1e-6 of the cost is far below what
     # the validation gap can tell apart
     JOINT_TOL = {"ftol": 1e-6, "xtol": 1e-6, "gtol": 1e-6}
+    COARSE_STEP, FINE_STEP = 1e-2, 1e-3     # finite-difference steps, relative, on the unit box
+    # iterations of a joint fit (F, G, h and an effect; the baseline's own fit is not capped): the fits
+    # that end on their own take 15-45 on the blind rigs; one still crawling after 60 is in a misfit
+    # that no effect mends (curved borders on a paper-base rig with a 0.6 deadzone, 346x the floor,
+    # ran to 100 and more, two thirds of a 425 s diagnosis, for the same result)
+    MAX_ITER = 60
 
     ZETA_LIGHT = E.ZETA_LIGHT       # a pole pair of G below this damping ratio is a lightly damped mode
 
@@ -481,42 +490,38 @@ class EffectFitter:
         if np.any(hi > lo):
             def fun(x):
                 return self._residual(eff, self._from_unit(x, lo, hi, logs))
+
+            def run(x0, step):
+                nonlocal best_cost, best
+                sol = self._lsq_fit(fun, x0, step)
+                if sol is not None and float(2 * sol.cost) < best_cost:
+                    best_cost, best = float(2 * sol.cost), self._from_unit(sol.x, lo, hi, logs)
+
             starts0 = [self._to_unit(th0, lo, hi, logs) for _, th0 in costs[:2]]
             if eff.kinked:
                 # a slew, a clip or a delay of whole and fractional samples puts small kinks into
                 # the cost, and finite differences of 1e-3 of the unit box see their slopes instead
                 # of the bowl's (a rate limit started a factor 1.5 off stopped there): coarse steps
                 # from the two best starts, then the best result polished with fine steps
-                passes = [(self.COARSE_STEP, starts0, None), (self.FINE_STEP, None, self.POLISH_NFEV)]
+                for x0 in starts0:
+                    run(x0, self.COARSE_STEP)
+                run(self._to_unit(best, lo, hi, logs), self.FINE_STEP)
             else:
-                passes = [(self.FINE_STEP, starts0, None)]
-            for step, x0s, nfev in passes:
-                for x0 in (x0s if x0s is not None else [self._to_unit(best, lo, hi, logs)]):
-                    sol = self._lsq_fit(fun, x0, step, nfev)
-                    if sol is not None and float(2 * sol.cost) < best_cost:
-                        best_cost, best = float(2 * sol.cost), self._from_unit(sol.x, lo, hi, logs)
+                for x0 in starts0:
+                    run(x0, self.FINE_STEP)
         # the G parameters are the baseline's too: only the effect's own count
         return self._score(eff, best, len(eff.params))
 
-    COARSE_STEP, FINE_STEP = 1e-2, 1e-3     # finite-difference steps, relative, on the unit box
-
-    POLISH_NFEV = 4     # iterations of the fine polish (each costs a Jacobian: one run per parameter)
-    # iterations of a joint fit (F, G, h and an effect; the baseline's own fit is not capped): the fits
-    # that end on their own take 15-45 on the blind rigs; one still crawling after 60 is in a misfit
-    # that no effect mends (curved borders on a paper-base rig with a 0.6 deadzone, 346x the floor,
-    # ran to 100 and more, two thirds of a 425 s diagnosis, for the same result)
-    MAX_ITER = 60
-
-    def _lsq_fit(self, fun, x0, step: float, max_nfev: int | None = None):
-        """Bounded least squares on the unit box (None when it cannot start). ``max_nfev`` counts
+    def _lsq_fit(self, fun, x0, step: float):
+        """Bounded least squares on the unit box (None when it cannot start); ``max_nfev`` counts
         iterations (scipy does not count the finite-difference Jacobian's runs)."""
         try:
             if self.refit_g:    # more parameters, each iteration costs more: looser stops
                 return least_squares(fun, x0, bounds=(0.0, 1.0), diff_step=step, x_scale=1.0,
-                                     max_nfev=max_nfev or min(20 * (len(x0) + 1), self.MAX_ITER),
-                                     method="trf", **self.JOINT_TOL)
+                                     max_nfev=min(20 * (len(x0) + 1), self.MAX_ITER), method="trf",
+                                     **self.JOINT_TOL)
             return least_squares(fun, x0, bounds=(0.0, 1.0), diff_step=step, x_scale=1.0,
-                                 max_nfev=max_nfev or 40 * (len(x0) + 1), method="trf")
+                                 max_nfev=40 * (len(x0) + 1), method="trf")
         except ValueError:
             return None
 
