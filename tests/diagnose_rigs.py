@@ -20,7 +20,8 @@ BASE = {"kind": "hammerstein_wiener",
         "noise": {"std": 0.01}}
 NOISE = 0.01
 TRUTH = {"sensor_lag": {"tau_s": 1.5}, "rate_limit": {"rate": 0.4}, "input_deadzone": {"delta": 0.2},
-         "sensor_saturation": {"y_lo": -0.55, "y_hi": 0.55}, "resonance": {"omega_n": 4.0, "zeta": 0.05}}
+         "sensor_saturation": {"y_lo": -0.55, "y_hi": 0.55}, "resonance": {"omega_n": 4.0, "zeta": 0.05},
+         "rate_limit_inverse": {"rate": 5.6}}
 
 
 class _Rig:
@@ -167,8 +168,6 @@ class _InverseRig(_Rig):
         w = signal.lfilter([1 - a], [1, -a], np.r_[v[0], v[:-1]], zi=[a * v[0]])[0]
         return 0.8 * w - 0.1 * w ** 3
 
-
-TRUTH["rate_limit_inverse"] = {"rate": 5.6}
 
 
 def rate_limit_inverse(u, dt):

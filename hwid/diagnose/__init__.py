@@ -322,8 +322,7 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
         if alt.gap_ref < gap_ref:
             gap_ref = alt.gap_ref
             test = Gp.gap_test(gap_ref, n_val, nf, min_ratio=ID_MIN_RATIO)
-        cands = R.alternative_baseline(cands, R.fit_all(alt, effs, echo=echo), gap_ref, nf.sigma,
-                                       max(n_val / nf.kappa, 2.0))
+        cands = R.alternative_baseline(cands, R.fit_all(alt, effs, echo=echo), gap_ref, nf.sigma, fitter.n_eff)
     # what the repeat difference is regressed on: the plant's own output (the mean of the pair; its
     # noise is uncorrelated with the difference's), not the model's, which an identification that
     # the disturbance distorted gets wrong exactly where a gain's wander shows
@@ -343,7 +342,7 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
         # (which carry whatever the plant does not repeat exactly), the excess is measured down to it
         cands, floor = R.refloor(cands, gap_ref, nf.sigma, drift_ok)
         best = next((c for c in cands if c.effect != "drift" or drift_ok), None)
-        n_eff = max(n_val / nf.kappa, 2.0)
+        n_eff = fitter.n_eff
         if best is not None:
             lr = float(best.score + best.k * np.log(n_eff))
             by_effect = {"effect": best.effect, "likelihood_ratio": lr, "score": best.score, "noise_bound": floor,

@@ -109,6 +109,12 @@ def mirror_rhp_zeros(num) -> tuple[np.ndarray, float]:
     return new * (num[-1] / new[-1]), hint
 
 
+def bic_score(gap_before: float, gap_after: float, k: float, n_eff: float) -> float:
+    """The candidate's BIC on the validation data, ``n_eff ln(gap_before^2 / gap_after^2) - k ln(n_eff)``
+    (see the module docstring)."""
+    return float(n_eff * np.log(max(gap_before ** 2, 1e-300) / max(gap_after ** 2, 1e-300)) - k * np.log(n_eff))
+
+
 def explained_fraction(gap_before: float, gap_after: float, sigma: float) -> float:
     """``1 - excess(after) / excess(before)``, clipped to [0, 1]: the share of the gap above the
     noise floor that an effect removes."""
@@ -292,6 +298,11 @@ class EffectFitter:
         self.refit_g = True
         self.g_p = np.zeros(self.n_g)
         self._g_cache = {}
+
+    @property
+    def n_eff(self) -> float:
+        """Independent samples of the validation data (``n / kappa``, at least 2)."""
+        return max(self.n_val / self.kappa, 2.0)
 
     @property
     def n_g(self) -> int:
@@ -563,8 +574,7 @@ class EffectFitter:
             gf = rms(rf)
         gb = self.gap_ref
         ef = explained_fraction(gb, ga, self.sigma)
-        n_eff = max(self.n_val / self.kappa, 2.0)
-        score = float(n_eff * np.log(max(gb * gb, 1e-300) / max(ga * ga, 1e-300)) - k * np.log(n_eff))
+        score = bic_score(gb, ga, k, self.n_eff)
         params = {p: float(v) for p, v in zip(eff.params, theta)}
         per = {name: rms(r) for name, r in zip(self.names_val, res)}
         c = Candidate(eff.name, eff.block, params, gf, ga, ef, score, float(k), per, preds)
@@ -630,7 +640,7 @@ def has_outside_modes(G, band, zeta_light: float = E.ZETA_LIGHT) -> bool:
 def alternative_baseline(primary: list[Candidate], other: list[Candidate], gap_ref: float, sigma: float,
                          n_eff: float) -> list[Candidate]:
     """Each effect from whichever of two baselines fits the fit experiments better, measured against
-    the primary baseline's gap ``gap_ref`` (explained fraction and score recomputed), ranked.
+    ``gap_ref`` (the better baseline alone: explained fraction and score recomputed), ranked.
 
     The two baselines of an identified model: its G refit as it is, and its G with the lightly
     damped modes outside the identified band taken out before the refit. Stage 2 may put a mode
@@ -646,10 +656,8 @@ def alternative_baseline(primary: list[Candidate], other: list[Candidate], gap_r
     for c in primary:
         o = by.get(c.effect)
         pick = o if (o is not None and np.isfinite(o.gap_fit) and o.gap_fit < c.gap_fit) else c
-        score = float(n_eff * np.log(max(gap_ref ** 2, 1e-300) / max(pick.gap_after ** 2, 1e-300))
-                      - pick.k * np.log(n_eff))
         out.append(dataclasses.replace(pick, explained_fraction=explained_fraction(gap_ref, pick.gap_after, sigma),
-                                       score=score))
+                                       score=bic_score(gap_ref, pick.gap_after, pick.k, n_eff)))
     return rank(out)
 
 
