@@ -21,7 +21,13 @@ BASE = {"kind": "hammerstein_wiener",
 NOISE = 0.01
 TRUTH = {"sensor_lag": {"tau_s": 1.5}, "rate_limit": {"rate": 0.4}, "input_deadzone": {"delta": 0.2},
          "sensor_saturation": {"y_lo": -0.55, "y_hi": 0.55}, "resonance": {"omega_n": 4.0, "zeta": 0.05},
-         "rate_limit_inverse": {"rate": 5.6}}
+         "rate_limit_inverse": {"rate": 5.6}, "input_saturation_paper": {"u_lo": -1.23, "u_hi": 0.73}}
+# the paper's plant (Section 6) as an hwid model: the base of the paper-rig tests
+PAPER = {"kind": "hammerstein_wiener",
+         "input_nonlinearity": {"type": "backlash", "slope_up": 1.0, "slope_down": 1.0, "d_plus": 0.5, "d_minus": -0.5},
+         "linear": {"num": [0.2], "den": [1.0, 0.7, 0.1]},
+         "output_nonlinearity": {"polynomial": [0, 0.25, 0, -0.42, 0, 0.2]},
+         "noise": {"std": 0.01}}
 
 
 class _Rig:
@@ -184,3 +190,40 @@ def rate_limit_inverse(u, dt):
         ua[i] = p
     r.actuator = p
     return r.inverse(ua, dt) + r.NOISE * r.rng.standard_normal(u.size)
+
+
+class _PaperRig(_Rig):
+    """The paper's plant: a backlash (play 0.5 each side, unit slopes), ``G(s) = 0.2/(s^2 + 0.7 s +
+    0.1)``, ``h(w) = 0.25 w - 0.42 w^3 + 0.2 w^5`` (not monotone, steep beyond |w| = 1.3), white
+    noise 0.01; gear and G's state carry over from call to call."""
+
+    def __init__(self, seed: int):
+        super().__init__(seed)
+        self.state = None
+
+    def paper(self, u, dt):
+        v = np.empty_like(u)
+        g = self.gear
+        for i, ui in enumerate(u):
+            g = min(max(g, ui - 0.5), ui + 0.5)
+            v[i] = g
+        self.gear = g
+        A, B, C, D, _ = signal.cont2discrete(signal.tf2ss([0.2], [1.0, 0.7, 0.1]), dt, method="zoh")
+        x = np.linalg.solve(np.eye(2) - A, B[:, 0] * v[0]) if self.state is None else self.state
+        w = np.empty_like(v)
+        for i, vi in enumerate(v):
+            w[i] = float(C[0] @ x + D[0, 0] * vi)
+            x = A @ x + B[:, 0] * vi
+        self.state = x
+        return 0.25 * w - 0.42 * w ** 3 + 0.2 * w ** 5
+
+
+def input_saturation_paper(u, dt):
+    """The paper's plant behind an actuator that clips u to [-1.23, 0.73]."""
+    if "input_saturation_paper" not in _RIGS:
+        _RIGS["input_saturation_paper"] = _PaperRig(zlib.crc32(b"input_saturation_paper"))
+    r = _RIGS["input_saturation_paper"]
+    t = TRUTH["input_saturation_paper"]
+    u = np.clip(np.asarray(u, float), t["u_lo"], t["u_hi"])
+    return r.paper(u, dt) + r.noise(u.size)
+

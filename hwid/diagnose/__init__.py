@@ -297,6 +297,9 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
     if fitter.delay_hint > 0:
         echo(f"the refit G had zeros in the right half plane (excess phase, as a delay of {fitter.delay_hint:.3g} s "
              "gives): mirrored into the left half plane in the baseline, left to the time_delay effect")
+    for p, z in fitter.cancelled_pairs:
+        echo(f"G had a pole at {p:.3g} rad/s and a zero at {z:.3g} rad/s below the sine band that nearly cancel "
+             "(a gain step the sines cannot place): taken out of the baseline")
     for wn, z in fitter.modes:
         echo(f"the refit G has a lightly damped mode outside the identified band (omega_n = {wn:.4g} rad/s, "
              f"zeta = {z:.3g}): taken out of the baseline, left to the resonance effect")
@@ -382,7 +385,8 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
         "gap_model_refit": float(gap_ref),
         "model_refit": ({**fitter.model_dict(fitter.g_p),
                          "modes_taken_out": [{"omega_n": w, "zeta": z} for w, z in fitter.modes],
-                         "excess_phase_taken_out_s": float(fitter.delay_hint)}
+                         "excess_phase_taken_out_s": float(fitter.delay_hint),
+                         "slow_pairs_taken_out": [{"pole": p, "zero": z} for p, z in fitter.cancelled_pairs]}
                         if fitter.refit_g else None),
         "where": where,
         "candidates": [{**c.to_dict(), "eligible": bool(c.effect != "drift" or drift_ok)} for c in cands],
