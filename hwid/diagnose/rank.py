@@ -210,8 +210,9 @@ class EffectFitter:
     # ran to 100 and more, two thirds of a 425 s diagnosis, for the same result)
     MAX_ITER = 60
     # the profile scan (:meth:`_scan`): effects with at most this many own parameters, this many
-    # values along each
-    SCAN_MAX_PARAMS, SCAN_POINTS = 2, 60
+    # values along each over its range, and as many again across the best one's neighbouring cells
+    # (a resolution of about 1/100 of the range)
+    SCAN_MAX_PARAMS, SCAN_POINTS, SCAN_GAIN = 2, 15, 0.1
 
     ZETA_LIGHT = E.ZETA_LIGHT       # a pole pair of G below this damping ratio is a lightly damped mode
 
@@ -579,10 +580,15 @@ class EffectFitter:
                 for x0 in starts0:
                     run(x0, self.FINE_STEP)
             ne = len(eff.params)
-            if ne <= self.SCAN_MAX_PARAMS:
+            # a fit already down to the noise floor has no valley left to find
+            floor = float(np.size(self._residual(eff, best))) * self.sigma ** 2
+            if ne <= self.SCAN_MAX_PARAMS and best_cost > 1.05 * floor:
                 scanned, cost = self._scan(eff, best, best_cost, lo, hi, logs)
-                if cost < best_cost:
-                    best_cost, best = cost, scanned
+                # polished when the scan found another valley (a tenth off the cost), not a step
+                # along the one least squares stopped in (each polish is a joint fit's full cost)
+                polish = cost < (1.0 - self.SCAN_GAIN) * best_cost
+                best_cost, best = cost, scanned
+                if polish:
                     x0 = self._to_unit(best, lo, hi, logs)
                     if eff.kinked:
                         run(x0, self.COARSE_STEP)
@@ -593,8 +599,9 @@ class EffectFitter:
         return self._score(eff, best, len(eff.params))
 
     def _scan(self, eff, best, best_cost, lo, hi, logs):
-        """The effect's own parameters scanned one at a time over their whole range (``SCAN_POINTS``
-        values each, the others and the model's held at the best so far), twice round.
+        """The effect's own parameters scanned one at a time (the others and the model's held at the
+        best so far): ``SCAN_POINTS`` values over the whole range, then as many across the cells
+        either side of the best of them; round again while that moves the best.
 
         Least squares follows the slope it starts on; the cost of a clip, a deadzone or a slew seen
         through a steep output stage (the paper's h) is a narrow valley between ridges, and the
@@ -603,18 +610,31 @@ class EffectFitter:
         width of a deadzone or a rate acts mostly on its own, so a profile along each parameter
         finds the valley that least squares then descends."""
         best = np.asarray(best, float).copy()
+
+        def along(k, grid):
+            nonlocal best, best_cost
+            moved = False
+            for v in grid:
+                th = best.copy()
+                th[k] = v
+                r = self._residual(eff, th)
+                c = float(r @ r)
+                if c < best_cost:
+                    best_cost, best, moved = c, th, True
+            return moved
+
+        n = self.SCAN_POINTS
         for _ in range(2):
             moved = False
             for k in range(len(eff.params)):
-                grid = np.geomspace(lo[k], hi[k], self.SCAN_POINTS) if logs[k] and lo[k] > 0 \
-                    else np.linspace(lo[k], hi[k], self.SCAN_POINTS)
-                for v in grid:
-                    th = best.copy()
-                    th[k] = v
-                    r = self._residual(eff, th)
-                    c = float(r @ r)
-                    if c < best_cost:
-                        best_cost, best, moved = c, th, True
+                log = bool(logs[k]) and lo[k] > 0
+                a, b = (np.log(lo[k]), np.log(hi[k])) if log else (lo[k], hi[k])
+                coarse = np.linspace(a, b, n)
+                moved |= along(k, np.exp(coarse) if log else coarse)
+                c = np.log(best[k]) if log else best[k]
+                step = (b - a) / (n - 1)
+                fine = np.linspace(max(c - step, a), min(c + step, b), n + 2)[1:-1]
+                moved |= along(k, np.exp(fine) if log else fine)
             if not moved:
                 break
         return best, best_cost
