@@ -4,8 +4,10 @@ experiments (which the fit never saw), rank, and give the verdict.
 For an effect with parameters ``theta`` (what it interacts with included, e.g. the borders for a
 deadzone) the fit minimises the squared gap on the fit experiments: a coarse grid of starting
 points (:meth:`Effect.starts`), then bounded least squares (``scipy.optimize.least_squares``) from
-the best two, on a unit box (log scale where the parameter spans decades). The candidate is then
-simulated on the validation experiments:
+the best two, on a unit box (log scale where the parameter spans decades); for an effect of one or
+two parameters, a profile scan along each of them then looks for a valley least squares did not
+start in (:meth:`EffectFitter._scan`). The candidate is then simulated on the validation
+experiments:
 
 * ``gap_after`` — RMS gap left, output units;
 * ``explained_fraction = (gap_before^2 - gap_after^2) / (gap_before^2 - sigma^2)`` — the share of the
@@ -193,7 +195,8 @@ class EffectFitter:
         parameters, so the information criterion counts only the effect's own.
     band : (float, float), optional
         The sine band stage 2 identified G on, rad/s (lightly damped modes outside it are left to
-        the ``resonance`` effect).
+        the ``resonance`` effect; near-cancelling pole-zero pairs below it are taken out of G,
+        :func:`cancel_slow_pairs`).
     strip_identified : bool
         Take lightly damped modes outside ``band`` out of the identified G before the baseline is
         refit (see :func:`alternative_baseline`).
