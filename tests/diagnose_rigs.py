@@ -37,13 +37,18 @@ class _Rig:
         self.drift = 0.0
         self.rng = np.random.default_rng(np.random.SeedSequence(seed))
 
-    def base(self, u, dt, out_play: float = 0.0, mode=None):
+    def gear_out(self, u, play: float):
+        """The gear's position through a backlash of ``play`` each side (unit slopes), carried over."""
         v = np.empty_like(u)
         g = self.gear
         for i, ui in enumerate(u):
-            g = min(max(g, ui - 0.3), ui + 0.3)
+            g = min(max(g, ui - play), ui + play)
             v[i] = g
         self.gear = g
+        return v
+
+    def base(self, u, dt, out_play: float = 0.0, mode=None):
+        v = self.gear_out(u, 0.3)
         num, den = [2.0], [1.0, 3.0, 2.0]
         if mode is not None:        # a lightly damped mode wn^2 / (s^2 + 2 zeta wn s + wn^2)
             wn, z = mode
@@ -202,12 +207,7 @@ class _PaperRig(_Rig):
         self.state = None
 
     def paper(self, u, dt):
-        v = np.empty_like(u)
-        g = self.gear
-        for i, ui in enumerate(u):
-            g = min(max(g, ui - 0.5), ui + 0.5)
-            v[i] = g
-        self.gear = g
+        v = self.gear_out(u, 0.5)
         A, B, C, D, _ = signal.cont2discrete(signal.tf2ss([0.2], [1.0, 0.7, 0.1]), dt, method="zoh")
         x = np.linalg.solve(np.eye(2) - A, B[:, 0] * v[0]) if self.state is None else self.state
         w = np.empty_like(v)

@@ -548,6 +548,7 @@ class EffectFitter:
             th = np.clip(th, lo, hi)
             r = self._residual(eff, th)
             costs.append((float(r @ r), th))
+        n_res = r.size
         costs.sort(key=lambda c: c[0])
         if self.refit_g and np.any(self.g_p != 0):
             # the baseline's refit bends F and G towards what the model misses (borders shifted and
@@ -584,7 +585,7 @@ class EffectFitter:
                     run(x0, self.FINE_STEP)
             ne = len(eff.params)
             # a fit already down to the noise floor has no valley left to find
-            floor = float(np.size(self._residual(eff, best))) * self.sigma ** 2
+            floor = float(n_res) * self.sigma ** 2
             if ne <= self.SCAN_MAX_PARAMS and best_cost > 1.05 * floor:
                 scanned, cost = self._scan(eff, best, best_cost, lo, hi, logs)
                 # polished when the scan found another valley (a tenth off the cost), not a step
