@@ -442,9 +442,14 @@ class EffectFitter:
             return
         if num.size > den_red.size:      # the pair cannot go without making G improper
             return
-        from hwid.blocks.linear import LinearBlock
         self.modes = self.modes + modes
-        self._init_g(F, LinearBlock(tuple(num.tolist()), tuple(den_red.tolist()), G.delay))
+        self._replace_g(F, num, den_red, G.delay, refit)
+
+    def _replace_g(self, F, num, den, delay, refit: bool = True) -> None:
+        """The model's G becomes ``num/den`` (F kept), re-estimated from there when ``refit``."""
+        from hwid.blocks.linear import LinearBlock
+        self._init_g(F, LinearBlock(tuple(np.asarray(num, float).tolist()), tuple(np.asarray(den, float).tolist()),
+                                    delay))
         if refit:
             self.g_p = self._fit_baseline_g()
 
@@ -460,11 +465,8 @@ class EffectFitter:
         num, den, pairs = cancel_slow_pairs(G.num, G.den, band)
         if not pairs:
             return
-        from hwid.blocks.linear import LinearBlock
         self.cancelled_pairs = self.cancelled_pairs + pairs
-        self._init_g(F, LinearBlock(tuple(num.tolist()), tuple(den.tolist()), G.delay))
-        if refit:
-            self.g_p = self._fit_baseline_g()
+        self._replace_g(F, num, den, G.delay, refit)
 
     def _strip_rhp_zeros(self) -> None:
         """Mirror zeros of the refit G in the right half plane into the left one.
@@ -482,9 +484,7 @@ class EffectFitter:
         new, hint = mirror_rhp_zeros(G.num)
         if hint <= 0:
             return
-        from hwid.blocks.linear import LinearBlock
-        self._init_g(F, LinearBlock(tuple(new.tolist()), tuple(np.asarray(G.den, float).tolist()), G.delay))
-        self.g_p = self._fit_baseline_g()
+        self._replace_g(F, new, G.den, G.delay)
         self.delay_hint = hint
 
     def _with_x(self, sim, xs):
@@ -571,18 +571,20 @@ class EffectFitter:
                 if sol is not None and float(2 * sol.cost) < best_cost:
                     best_cost, best = float(2 * sol.cost), self._from_unit(sol.x, lo, hi, logs)
 
-            starts0 = [self._to_unit(th0, lo, hi, logs) for _, th0 in costs[:2]]
-            if eff.kinked:
-                # a slew, a clip or a delay of whole and fractional samples puts small kinks into
-                # the cost, and finite differences of 1e-3 of the unit box see their slopes instead
-                # of the bowl's (a rate limit started a factor 1.5 off stopped there): coarse steps
-                # from the two best starts, then the best result polished with fine steps
-                for x0 in starts0:
-                    run(x0, self.COARSE_STEP)
-                run(self._to_unit(best, lo, hi, logs), self.FINE_STEP)
-            else:
-                for x0 in starts0:
-                    run(x0, self.FINE_STEP)
+            def descend(x0s):
+                if eff.kinked:
+                    # a slew, a clip or a delay of whole and fractional samples puts small kinks
+                    # into the cost, and finite differences of 1e-3 of the unit box see their
+                    # slopes instead of the bowl's (a rate limit started a factor 1.5 off stopped
+                    # there): coarse steps from each start, then the best result polished with fine
+                    for x0 in x0s:
+                        run(x0, self.COARSE_STEP)
+                    run(self._to_unit(best, lo, hi, logs), self.FINE_STEP)
+                else:
+                    for x0 in x0s:
+                        run(x0, self.FINE_STEP)
+
+            descend([self._to_unit(th0, lo, hi, logs) for _, th0 in costs[:2]])
             ne = len(eff.params)
             # a fit already down to the noise floor has no valley left to find
             floor = float(n_res) * self.sigma ** 2
@@ -593,12 +595,7 @@ class EffectFitter:
                 polish = cost < (1.0 - self.SCAN_GAIN) * best_cost
                 best_cost, best = cost, scanned
                 if polish:
-                    x0 = self._to_unit(best, lo, hi, logs)
-                    if eff.kinked:
-                        run(x0, self.COARSE_STEP)
-                        run(self._to_unit(best, lo, hi, logs), self.FINE_STEP)
-                    else:
-                        run(x0, self.FINE_STEP)
+                    descend([self._to_unit(best, lo, hi, logs)])
         # the G parameters are the baseline's too: only the effect's own count
         return self._score(eff, best, len(eff.params))
 
