@@ -33,7 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from hwid import config
-from hwid.batch import limit_blas_threads, load_runs, load_summary, run_batch, run_once
+from hwid.batch import limit_blas_threads, run_batch, run_once
+from hwid.results import read_batch_runs, read_batch_summary
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -53,9 +54,9 @@ def measure(cfg, runs: int, jobs: int, out: Path) -> dict:
     h5 = run_batch(cfg, runs, out, jobs=jobs, progress=False)
     wall = time.perf_counter() - t0
     cpu = _cpu() - c0
-    r = load_runs(h5)
+    r = read_batch_runs(h5)
     sim, est, per = r["seconds_simulate"], r["seconds_estimate"], r["seconds"]
-    n_err = int(load_summary(h5)["points"][0]["n_errors"])
+    n_err = int(read_batch_summary(h5)["points"][0]["n_errors"])
     return {"runs": runs, "jobs": jobs, "wall": wall, "cpu": cpu, "sim": float(np.sum(sim)),
             "est": float(np.sum(est)), "per_run": float(np.mean(per)), "load": (load0, os.getloadavg()[0]),
             "errors": n_err}

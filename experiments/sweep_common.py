@@ -13,10 +13,11 @@ def run(sweeps, runs: int, jobs: int, out: Path, cfg_path: Path | None = None):
     import warnings
     warnings.simplefilter("ignore")
     from hwid import config
-    from hwid.batch import load_summary, run_batch
+    from hwid.batch import run_batch
+    from hwid.results import read_batch_summary
     cfg = config.load(cfg_path or ROOT / "configs" / "paper.yaml")
     path = run_batch(cfg, runs, out, sweeps, jobs=jobs, progress=True)
-    return load_summary(path), path
+    return read_batch_summary(path), path
 
 
 def table(summary, names, stats=("rmse", "coverage", "efficiency")) -> str:

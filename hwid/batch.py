@@ -30,6 +30,7 @@ import numpy as np
 
 from hwid import HwidError
 from hwid.progress import Progress
+from hwid.results import write_batch
 
 SPEC = "batch_spec.json"
 JOURNAL = "batch.jsonl"
@@ -162,8 +163,7 @@ def limit_blas_threads():
     spin while they wait, and on a loaded machine a run costs 10-20 % more CPU. ``threadpoolctl``
     does this for every BLAS when it is installed; without it the OpenBLAS libraries numpy and scipy
     have loaded are told directly (Linux: found in ``/proc/self/maps``)."""
-    import importlib
-    importlib.import_module("scipy.linalg")          # scipy's OpenBLAS is loaded, as numpy's is
+    import scipy.linalg  # noqa: F401 - loads scipy's OpenBLAS, as numpy's is, so both are limited
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:
@@ -332,55 +332,17 @@ def summarise(results: list[dict], truth: dict[str, float]) -> dict[str, dict]:
 
 
 def write_batch_h5(out: Path, bp: BatchPlan) -> Path:
-    """Rebuild ``batch.h5`` from the journal (atomic rename)."""
-    from hwid.results import atomic_h5, write_provenance
+    """Rebuild ``batch.h5`` from the journal (layout in :func:`hwid.results.write_batch`)."""
     results = read_journal(out / JOURNAL)
-    path = out / "batch.h5"
-    with atomic_h5(path) as f:
-        write_provenance(f, "batch", bp.cfg, extra={"runs": bp.runs,
-                                                    "sweeps": json.dumps(bp.points)})
-        for i, (p, c) in enumerate(zip(bp.points, bp.configs)):
-            rs = sorted((r for r in results if r["point"] == i), key=lambda r: r["run"])
-            g = f.create_group(f"points/p{i}")
-            g.attrs["overrides"] = json.dumps(p)
-            g.attrs["n_runs"] = len(rs)
-            g.attrs["n_errors"] = sum(1 for r in rs if r.get("error"))
-            names = sorted({k for r in rs for k in r["estimates"]})
-            runs_g = g.create_group("runs")
-            runs_g.create_dataset("run", data=np.array([r["run"] for r in rs], int))
-            runs_g.create_dataset("seconds", data=np.array([r.get("seconds", np.nan) for r in rs]))
-            for key in ("seconds_simulate", "seconds_estimate"):
-                runs_g.create_dataset(key, data=np.array([r.get(key, np.nan) for r in rs]))
-            for n in names:
-                runs_g.create_dataset(n, data=np.array([r["estimates"].get(n, np.nan) for r in rs]))
-            truth = truth_values(c)
-            sg = g.create_group("summary")
-            for n, s in summarise(rs, truth).items():
-                sg.create_group(n).attrs.update(s)
-            errs = [r["error"] for r in rs if r.get("error")]
-            if errs:
-                g.attrs["errors"] = json.dumps(errs[:20])
-    return path
-
-
-def load_summary(path: str | Path) -> dict:
-    """``{"sweep_keys": [...], "points": [{"overrides", "n_runs", "stats": {name: {...}}}]}``."""
-    from hwid.results import open_results
-    with open_results(path, "batch") as f:
-        points = []
-        for name in sorted(f["points"], key=lambda s: int(s[1:])):
-            g = f["points"][name]
-            stats = {n: {k: (v.item() if hasattr(v, "item") else v) for k, v in g["summary"][n].attrs.items()}
-                     for n in g["summary"]}
-            points.append({"overrides": json.loads(g.attrs["overrides"]), "n_runs": int(g.attrs["n_runs"]),
-                           "n_errors": int(g.attrs.get("n_errors", 0)), "stats": stats})
-    keys = list(points[0]["overrides"]) if points else []
-    return {"sweep_keys": keys, "points": points}
-
-
-def load_runs(path: str | Path, point: int = 0) -> dict[str, np.ndarray]:
-    """Per-run estimates of one sweep point."""
-    from hwid.results import open_results
-    with open_results(path, "batch") as f:
-        g = f[f"points/p{point}/runs"]
-        return {k: g[k][()] for k in g}
+    points = []
+    for i, (p, c) in enumerate(zip(bp.points, bp.configs)):
+        rs = sorted((r for r in results if r["point"] == i), key=lambda r: r["run"])
+        columns = {"run": np.array([r["run"] for r in rs], int),
+                   "seconds": np.array([r.get("seconds", np.nan) for r in rs])}
+        for key in ("seconds_simulate", "seconds_estimate"):
+            columns[key] = np.array([r.get(key, np.nan) for r in rs])
+        for name in sorted({k for r in rs for k in r["estimates"]}):
+            columns[name] = np.array([r["estimates"].get(name, np.nan) for r in rs])
+        points.append({"overrides": p, "columns": columns, "summary": summarise(rs, truth_values(c)),
+                       "errors": [r["error"] for r in rs if r.get("error")]})
+    return write_batch(out / "batch.h5", bp.cfg, bp.runs, points)

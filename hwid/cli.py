@@ -70,16 +70,13 @@ def identify_linear(config: Path = typer.Argument(..., help="Config YAML."),
     from hwid.identify import linear as L
     from hwid.results import write_json
     cfg = C.load(config)
-    try:
-        from hwid.identify.nonlinear import load_nonlinear
-    except ImportError:
-        raise HwidError("stage 1 (hwid.identify.nonlinear) is not available in this installation") from None
-    nl = load_nonlinear(nonlinear, cfg)
+    from hwid import results
+    nl = results.read_nonlinear(nonlinear, cfg)
     out = _out_dir(out)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", L.ExtrapolationWarning)   # listed below from the result
         res, records = L.identify_linear(cfg, nl, journal_dir=out / "rig_journal")
-    path = L.save_linear(out / "linear.h5", cfg, res, records)
+    path = results.write_linear(out / "linear.h5", cfg, res, records)
     if json_out is not None:
         write_json(json_out, res.to_dict())
     for i, w in enumerate(res.frequencies):
@@ -99,11 +96,11 @@ def identify_nonlinear(config: Path = typer.Argument(..., help="Config YAML."),
     """Stage 1 (Section 4): staircases -> h, the backlash borders and their type; OUT/nonlinear.h5."""
     from hwid import config as C
     from hwid.identify import nonlinear as NL
-    from hwid.results import write_json
+    from hwid.results import write_json, write_nonlinear
     cfg = C.load(config)
     out = _out_dir(out)
     res, records = NL.identify_nonlinear(cfg, data=data, journal_dir=out / "rig_journal")
-    path = NL.save_nonlinear(out, cfg, res, records)
+    path = write_nonlinear(out, cfg, res, records)
     if json_out is not None:
         write_json(json_out, res.to_dict())
     typer.echo(NL.format_summary(res))
@@ -151,12 +148,13 @@ def batch(config: Path = typer.Argument(..., help="Config YAML (a simulated plan
           scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://host:port.")):
     """Monte Carlo over noise realisations, optionally crossed with config sweeps; resumable."""
     from hwid import config as C
-    from hwid.batch import load_summary, parse_sweep, run_batch
+    from hwid.batch import parse_sweep, run_batch
+    from hwid.results import read_batch_summary
     cfg = C.load(config)
     if jobs < 1:
         raise HwidError("--jobs must be at least 1")
     path = run_batch(cfg, runs, _out_dir(out), [parse_sweep(s) for s in sweep], jobs=jobs, scheduler=scheduler)
-    summ = load_summary(path)
+    summ = read_batch_summary(path)
     for p in summ["points"]:
         typer.echo(f"{p['overrides'] or 'base config'}: {p['n_runs']} runs, {p['n_errors']} failed")
         for name, s in p["stats"].items():

@@ -24,6 +24,10 @@ from hwid.blocks import backlash as bl
 from hwid.blocks.linear import LinearBlock
 from hwid.blocks.static import PiecewiseH, PolynomialH
 
+#: A gear state below every border: from it, a staircase's first lead-in level puts a Backlash on
+#: its ascending border (the lead-ins of :mod:`hwid.protocols` make the state known).
+BELOW_BORDERS = -1e300
+
 
 @dataclass(frozen=True)
 class InputNonlinearity:
@@ -56,6 +60,15 @@ class InputNonlinearity:
         """Steady-state outputs ``F[U_j]`` along a sequence of constant levels."""
         f = bl.static_play if self.type == "backlash" else bl.static_direction_map
         return f(levels, self.slope_up, self.slope_down, self.d_plus, self.d_minus, state)
+
+    def staircase_steady(self, lead_in, levels) -> np.ndarray:
+        """``W_j = F_bar[U_j]`` at each level of a staircase, after its lead-in (eqs. 5, 7a-b, 14a-b):
+        on a border, or on the flat path before it; the lead-in starts from :data:`BELOW_BORDERS`
+        (Backlash) or 0 (Backlash-Inverse)."""
+        lead_in = np.asarray(lead_in, float)
+        state = BELOW_BORDERS if self.type == "backlash" else 0.0
+        return np.asarray(self.steady(np.concatenate([lead_in, np.asarray(levels, float)]), state),
+                          float)[lead_in.size:]
 
     def ascending(self, u):
         """The ascending border / branch as a function of u."""
@@ -91,6 +104,17 @@ class InputNonlinearity:
 
 
 @dataclass(frozen=True)
+class Signals:
+    """The chain's signals on one experiment (eqs. 3a-c without the noise): ``v = F[u]``,
+    ``w = G * v``, ``x = h(w)``; ``gear`` is F's state after the last sample (None if empty)."""
+
+    v: np.ndarray
+    w: np.ndarray
+    x: np.ndarray
+    gear: float | None
+
+
+@dataclass(frozen=True)
 class HWModel:
     """A complete (F, G, h) model; ``normalised()`` gives the representative of eqs. (4a-c)."""
 
@@ -101,6 +125,20 @@ class HWModel:
     def normalised(self) -> "HWModel":
         k = self.input.scale * self.linear.dc_gain
         return HWModel(self.input.normalised(), self.linear.normalised(), self.output.scaled(k))
+
+    def simulate(self, u, dt: float, gear: float | None = None) -> Signals:
+        """The F -> G -> h chain of eqs. (3a-c) on a sampled input: ``v = F[u]`` from the gear state
+        ``gear`` (None: the operator's default start at ``u[0]``), ``w`` the exact ZOH response of
+        G from the equilibrium of ``v[0]``, ``x = h(w)``. Every simulation of a model in hwid runs
+        here."""
+        u = np.ascontiguousarray(u, dtype=float)
+        v = self.input.apply(u, gear)
+        w = self.linear.simulate(v, dt)
+        return Signals(v, w, self.output(w), float(v[-1]) if v.size else gear)
+
+    def staircase_steady(self, lead_in, levels) -> np.ndarray:
+        """``X_j = h(G(0) F[U_j])`` at each level of a staircase after its lead-in (eqs. 5, 8a-b)."""
+        return self.output(self.linear.dc_gain * self.input.staircase_steady(lead_in, levels))
 
     def steady_output(self, levels, state: float) -> np.ndarray:
         """``X_j = h(G(0) F[U_j])`` for a level sequence (eqs. 5, 8)."""

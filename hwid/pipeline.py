@@ -12,13 +12,13 @@ import time
 from pathlib import Path
 
 from hwid.plant import make_plant
-from hwid.results import atomic_h5, write_dict, write_provenance, write_records
+from hwid.results import write_linear, write_nonlinear, write_simulation
 
 
 def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
     """Run everything; return the paths written and the seconds each step took."""
-    from hwid.identify.linear import identify_linear, save_linear
-    from hwid.identify.nonlinear import identify_nonlinear, save_nonlinear
+    from hwid.identify.linear import identify_linear
+    from hwid.identify.nonlinear import identify_nonlinear
     from hwid.simulate import truth
 
     out = Path(out_dir)
@@ -29,14 +29,8 @@ def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
 
     t0 = time.perf_counter()
     nl, nl_records = identify_nonlinear(cfg, plant=plant)
-    paths["nonlinear"] = save_nonlinear(out / "nonlinear.h5", cfg, nl, nl_records)
-    with atomic_h5(out / "simulation.h5") as f:
-        write_provenance(f, "simulation", cfg)
-        write_records(f.require_group("experiments"), nl_records)
-        t = truth(cfg)
-        if t is not None:
-            write_dict(f.require_group("truth"), t)
-    paths["simulation"] = out / "simulation.h5"
+    paths["nonlinear"] = write_nonlinear(out / "nonlinear.h5", cfg, nl, nl_records)
+    paths["simulation"] = write_simulation(out / "simulation.h5", cfg, nl_records, truth(cfg))
     times["stage1"] = time.perf_counter() - t0
     echo(f"stage 1: {nl.type}, d+ = {nl.d_plus:.4f}, S^d = {nl.slope_down:.4f}, d- = {nl.d_minus:.4f}, "
          f"degree {nl.degree} ({times['stage1']:.1f} s)")
@@ -48,7 +42,7 @@ def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ExtrapolationWarning)     # echoed below from the result
             lin, lin_records = identify_linear(cfg, nl, plant=plant)
-        paths["linear"] = save_linear(out / "linear.h5", cfg, lin, lin_records)
+        paths["linear"] = write_linear(out / "linear.h5", cfg, lin, lin_records)
         times["stage2"] = time.perf_counter() - t0
         echo(f"stage 2: G(jw) at {len(lin.frequencies)} frequencies ({times['stage2']:.1f} s)")
         for w in lin.warnings:

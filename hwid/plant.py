@@ -87,11 +87,9 @@ class SimulatedPlant:
 
     def run(self, name: str, u, z=None) -> Record:
         u = np.ascontiguousarray(u, dtype=float)
-        v = self.model.input.apply(u, self.state)
-        if v.size:
-            self.state = float(v[-1])
-        w = self.model.linear.simulate(v, self.dt)
-        x = self.model.output(w)
+        sig = self.model.simulate(u, self.dt, self.state)
+        self.state = sig.gear
+        v, w, x = sig.v, sig.w, sig.x
         y = x + noise(experiment_rng(self.seed_seq, name), u.size, self.noise_std, self.noise_ar)
         self.calls += 1
         if not np.all(np.isfinite(y)):

@@ -28,6 +28,8 @@ import h5py
 import numpy as np
 
 from hwid import HwidError, __version__
+from hwid.identify.result import LinearResult, NonlinearResult, plain
+from hwid.plant import Record
 
 FORMAT = 1
 LIBVER = ("v110", "latest")   # HDF5 >= 1.10 object layout: checksummed metadata
@@ -213,7 +215,6 @@ def read_padded(ds, n: int) -> np.ndarray:
 
 def read_records(group: h5py.Group) -> dict:
     """Inverse of :func:`write_records`; a damaged group raises :class:`ResultsError`."""
-    from hwid.plant import Record
     out = {}
     where = f"{group.file.filename}:{group.name}"
     try:
@@ -310,8 +311,203 @@ def write_json(path: str | Path, data: dict) -> None:
 
 
 def _json_default(o):
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
+    if isinstance(o, (np.ndarray, np.generic)):
+        return plain(o)
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+# ------------------------------------------------------------------------------- simulation.h5
+
+def write_simulation(path: str | Path, cfg, records, truth: dict | None = None) -> Path:
+    """Write ``simulation.h5`` (``hwid_kind = "simulation"``): group ``experiments`` (one subgroup a
+    record, :func:`write_records`) and, for a simulated plant, group ``truth`` (the true model and
+    its normalised form, eqs. 4a-c)."""
+    path = Path(path)
+    with atomic_h5(path) as f:
+        write_provenance(f, "simulation", cfg)
+        write_records(f.require_group("experiments"), records)
+        if truth is not None:
+            write_dict(f.require_group("truth"), truth)
+    return path
+
+
+# -------------------------------------------------------------------------- nonlinear.h5 (stage 1)
+
+def write_nonlinear(path: str | Path, cfg, result: NonlinearResult, records=()) -> Path:
+    """Write ``nonlinear.h5`` (``hwid_kind = "nonlinear"``; ``path`` may be its directory): group
+    ``result`` (the plain data of :meth:`NonlinearResult.to_dict`) and group ``experiments`` (the
+    staircase records)."""
+    path = Path(path)
+    out = path if path.suffix == ".h5" else path / "nonlinear.h5"
+    d = result.to_dict()
+    fit = d.pop("fit")
+    with atomic_h5(out) as f:
+        write_provenance(f, "nonlinear", cfg)
+        g = f.require_group("result")
+        write_dict(g, {k: v for k, v in d.items() if k not in ("warnings", "param_names")})
+        g.attrs["warnings"] = json.dumps(list(result.warnings))
+        g.attrs["param_names"] = json.dumps(list(result.param_names))
+        g.attrs["fit"] = json.dumps(fit, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o))
+        if records:
+            write_records(f.require_group("experiments"), records)
+    return out
+
+
+def read_nonlinear(path: str | Path, cfg=None) -> NonlinearResult:
+    """The :class:`NonlinearResult` of ``nonlinear.h5`` (or of a directory holding it)."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / "nonlinear.h5"
+    with open_results(path, "nonlinear", cfg) as f:
+        if "result" not in f:
+            raise ResultsError(f"{path}: holds no stage-1 result")
+        g = f["result"]
+        d = read_dict(g)
+        d["warnings"] = json.loads(g.attrs["warnings"])
+        d["param_names"] = json.loads(g.attrs["param_names"])
+        d["fit"] = json.loads(g.attrs["fit"])
+    return NonlinearResult.from_dict(d)
+
+
+def read_experiments(path: str | Path, kind: str | tuple[str, ...], cfg=None) -> dict:
+    """The ``experiments`` group of any hwid results file, as ``{name: Record}`` (empty if none)."""
+    with open_results(path, kind, cfg) as f:
+        return read_records(f["experiments"]) if "experiments" in f else {}
+
+
+# ----------------------------------------------------------------------------- linear.h5 (stage 2)
+
+def write_linear(path: str | Path, cfg, result: LinearResult, records=()) -> Path:
+    """Write ``linear.h5`` (``hwid_kind = "linear"``): group ``result`` (:meth:`LinearResult.to_dict`
+    with the per-frequency harmonic fits) and the sine records, whose ground-truth internals keep
+    only their last two periods (they are periodic)."""
+    path = Path(path)
+    with atomic_h5(path) as f:
+        write_provenance(f, "linear", cfg)
+        write_dict(f.require_group("result"), result.to_dict(full=True))
+        if records:
+            tail = {r.name: int(np.ceil(2 * 2 * np.pi / float(r.attrs["omega"]) / r.dt)) + 2
+                    for r in records if "omega" in r.attrs}
+            write_records(f.require_group("experiments"), records, truth_tail=tail)
+    return path
+
+
+def read_linear(path: str | Path, cfg=None) -> LinearResult:
+    """The :class:`LinearResult` of ``linear.h5``."""
+    with open_results(path, "linear", cfg) as f:
+        if "result" not in f:
+            raise ResultsError(f"{path}: has no 'result' group (an interrupted write?)")
+        d = read_dict(f["result"])
+    harm = d.get("harmonics", {})
+    harmonics = tuple(harm[k] for k in sorted(harm, key=int))
+    arr = lambda k: np.asarray(d[k], float)  # noqa: E731
+    par = d.get("parametric", {}) or {}
+    return LinearResult(arr("frequencies"), float(d["amplitude"]), arr("gain"), arr("gain_ci").reshape(-1, 2),
+                        arr("phase"), arr("phase_ci").reshape(-1, 2), arr("cov").reshape(-1, 2, 2),
+                        str(d["method"]), arr("crlb_gain"), arr("crlb_phase"), par, harmonics,
+                        np.asarray(d["extrapolated"], bool), tuple(d.get("warnings", ()) or ()),
+                        str(d.get("precompensator", "auto")))
+
+
+# --------------------------------------------------------------------------------- diagnosis.h5
+
+def write_diagnosis(path: str | Path, cfg, summary: dict, experiments: list[dict]) -> Path:
+    """Write ``diagnosis.h5`` (``hwid_kind = "diagnosis"``): the JSON summary as the root attribute
+    ``summary``, and one group per experiment in the order run (root attribute
+    ``experiment_order``) with datasets ``u, y, y_model, mask, region`` and, where present, ``z``
+    and ``y_after`` (validation experiments), attributes ``dt, kind, role, repeat_of, variable``."""
+    path = Path(path)
+    with atomic_h5(path) as f:
+        write_provenance(f, "diagnosis", cfg)
+        f.attrs["summary"] = json.dumps(summary, default=_json_default)
+        g = f.require_group("experiments")
+        for e in experiments:
+            h = g.require_group(e["name"])
+            for key in ("u", "y", "y_model", "mask", "region", "z", "y_after"):
+                if e.get(key) is not None:
+                    arr = np.asarray(e[key])
+                    h.create_dataset(key, data=arr.astype(np.int8) if arr.dtype == bool else arr,
+                                     compression="gzip", shuffle=True)
+            h.attrs["dt"] = e["dt"]
+            h.attrs["kind"] = e["kind"]
+            h.attrs["role"] = e["role"]
+            h.attrs["repeat_of"] = e.get("repeat_of") or ""
+            h.attrs["variable"] = json.dumps(e["variable"])
+        f.attrs["experiment_order"] = json.dumps([e["name"] for e in experiments])
+    return path
+
+
+def read_diagnosis(path: str | Path) -> dict:
+    """Plain data of ``diagnosis.h5``: ``summary`` (the JSON summary) and ``experiments``, a dict
+    name -> {t, u, y, y_model, y_after (validation only), z, mask, region, dt, kind, role,
+    repeat_of, variable}, in the order they were run."""
+    path = Path(path)
+    with open_results(path, "diagnosis") as f:
+        try:
+            summary = json.loads(f.attrs["summary"])
+            order = json.loads(f.attrs["experiment_order"])
+            exps = {}
+            for name in order:
+                g = f["experiments"][name]
+                dt = float(g.attrs["dt"])
+                e = {k: np.asarray(g[k][()]) for k in g.keys()}
+                e["mask"] = e["mask"].astype(bool)
+                e["t"] = np.arange(e["u"].size) * dt
+                e.update({"dt": dt, "kind": str(g.attrs["kind"]), "role": str(g.attrs["role"]),
+                          "repeat_of": str(g.attrs["repeat_of"]) or None,
+                          "variable": json.loads(g.attrs["variable"])})
+                exps[name] = e
+        except (KeyError, ValueError, OSError, TypeError) as err:
+            raise ResultsError(f"{path}: not a complete diagnosis ({type(err).__name__}: {err})") from None
+    return {"summary": summary, "experiments": exps}
+
+
+# ------------------------------------------------------------------------------------- batch.h5
+
+def write_batch(path: str | Path, cfg, runs: int, points: list[dict]) -> Path:
+    """Write ``batch.h5`` (``hwid_kind = "batch"``): one group ``points/p<i>`` a sweep point with
+    attributes ``overrides`` (JSON), ``n_runs``, ``n_errors`` (and ``errors``, the first 20), group
+    ``runs`` (one dataset a per-run column: ``run``, ``seconds``, ..., every estimate) and group
+    ``summary`` (one subgroup an estimate, its statistics as attributes).
+
+    ``points``: dicts with ``overrides``, ``columns`` (name -> array), ``summary`` (name -> dict)
+    and ``errors`` (list of strings)."""
+    path = Path(path)
+    with atomic_h5(path) as f:
+        write_provenance(f, "batch", cfg, extra={"runs": runs,
+                                                 "sweeps": json.dumps([p["overrides"] for p in points])})
+        for i, p in enumerate(points):
+            g = f.create_group(f"points/p{i}")
+            g.attrs["overrides"] = json.dumps(p["overrides"])
+            g.attrs["n_runs"] = len(p["columns"]["run"])
+            g.attrs["n_errors"] = len(p["errors"])
+            runs_g = g.create_group("runs")
+            for name, col in p["columns"].items():
+                runs_g.create_dataset(name, data=np.asarray(col))
+            sg = g.create_group("summary")
+            for name, s in p["summary"].items():
+                sg.create_group(name).attrs.update(s)
+            if p["errors"]:
+                g.attrs["errors"] = json.dumps(p["errors"][:20])
+    return path
+
+
+def read_batch_summary(path: str | Path) -> dict:
+    """``{"sweep_keys": [...], "points": [{"overrides", "n_runs", "n_errors", "stats": {name: {...}}}]}``."""
+    with open_results(path, "batch") as f:
+        points = []
+        for name in sorted(f["points"], key=lambda s: int(s[1:])):
+            g = f["points"][name]
+            stats = {n: {k: (v.item() if hasattr(v, "item") else v) for k, v in g["summary"][n].attrs.items()}
+                     for n in g["summary"]}
+            points.append({"overrides": json.loads(g.attrs["overrides"]), "n_runs": int(g.attrs["n_runs"]),
+                           "n_errors": int(g.attrs.get("n_errors", 0)), "stats": stats})
+    keys = list(points[0]["overrides"]) if points else []
+    return {"sweep_keys": keys, "points": points}
+
+
+def read_batch_runs(path: str | Path, point: int = 0) -> dict[str, np.ndarray]:
+    """The per-run columns of one sweep point of ``batch.h5``."""
+    with open_results(path, "batch") as f:
+        g = f[f"points/p{point}/runs"]
+        return {k: g[k][()] for k in g}

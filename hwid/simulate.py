@@ -15,7 +15,7 @@ from hwid import protocols
 from hwid.model import from_config
 from hwid.plant import SimulatedPlant, make_plant
 from hwid.progress import Progress
-from hwid.results import atomic_h5, write_dict, write_provenance, write_records
+from hwid.results import write_simulation
 
 
 def truth(cfg) -> dict | None:
@@ -56,10 +56,4 @@ def simulate(cfg, out_dir: str | Path, progress: bool | None = None) -> Path:
     """Write ``OUT/simulation.h5`` (layout in the README)."""
     out = Path(out_dir) / "simulation.h5"
     records = run_protocols(cfg, make_plant(cfg, journal_dir=Path(out_dir) / "rig_journal"), progress)
-    with atomic_h5(out) as f:
-        write_provenance(f, "simulation", cfg)
-        write_records(f.require_group("experiments"), records)
-        t = truth(cfg)
-        if t is not None:
-            write_dict(f.require_group("truth"), t)
-    return out
+    return write_simulation(out, cfg, records, truth(cfg))

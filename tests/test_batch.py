@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from hwid import config
-from hwid.batch import load_runs, load_summary, read_journal, run_batch
+from hwid.batch import read_journal, run_batch
+from hwid.results import read_batch_runs, read_batch_summary
 
 FAST = """
 name: fast
@@ -37,7 +38,7 @@ def fast_cfg(tmp_path):
 
 
 def _estimates(path, point=0):
-    r = load_runs(path, point)
+    r = read_batch_runs(path, point)
     order = np.argsort(r["run"])
     return {k: v[order] for k, v in r.items() if not k.startswith("seconds")}
 
@@ -51,7 +52,7 @@ def test_identical_whatever_jobs(fast_cfg, tmp_path):
         np.testing.assert_array_equal(ea[k], eb[k], err_msg=k)
     # the runs differ from each other (independent noise) yet each lands near the truth
     assert np.ptp(ea["d_plus"]) > 0
-    s = load_summary(a)["points"][0]["stats"]
+    s = read_batch_summary(a)["points"][0]["stats"]
     assert abs(s["d_plus"]["bias"]) < 0.01 and s["d_plus"]["truth"] == pytest.approx(0.4)
     assert abs(s["gain@0.5"]["truth"] - 1 / abs(1 + 0.25j)) < 1e-12
 
@@ -72,7 +73,7 @@ def test_dask_local_cluster_gives_identical_results(fast_cfg, tmp_path):
 
 def test_sweep_crosses_points(fast_cfg, tmp_path):
     path = run_batch(fast_cfg, 2, tmp_path / "s", sweeps=[("plant.noise.std", [0.001, 0.02])], progress=False)
-    s = load_summary(path)
+    s = read_batch_summary(path)
     assert s["sweep_keys"] == ["plant.noise.std"]
     assert [p["overrides"]["plant.noise.std"] for p in s["points"]] == [0.001, 0.02]
     e0, e1 = _estimates(path, 0), _estimates(path, 1)

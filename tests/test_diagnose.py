@@ -18,7 +18,8 @@ import yaml
 
 from hwid import config
 from hwid.cli import main
-from hwid.diagnose import CATALOGUE, diagnose, load_diagnosis, plot_ranking, plot_residual_map
+from hwid.diagnose import CATALOGUE, diagnose, plot_ranking, plot_residual_map
+from hwid.results import read_diagnosis
 
 import diagnose_rigs as R
 
@@ -121,7 +122,7 @@ def test_json_keys_and_h5(lag):
     assert {c["effect"] for c in data["candidates"]} == set(CATALOGUE)
     for c in data["candidates"]:
         assert set(c) >= {"effect", "params", "gap_after", "explained_fraction", "score"}
-    diag = load_diagnosis(tmp / "out" / "diagnosis.h5")
+    diag = read_diagnosis(tmp / "out" / "diagnosis.h5")
     assert diag["summary"]["verdict"]["effect"] == "sensor_lag"
     val = [e for e in diag["experiments"].values() if e["role"] == "validation"]
     e = val[0]

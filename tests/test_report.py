@@ -245,10 +245,9 @@ def test_full_report_files_and_figures(full_run):
 
 
 def test_full_report_figures_hold_truth_and_estimates(full_run):
-    from hwid.identify.linear import load_linear
-    from hwid.identify.nonlinear import load_nonlinear
+    from hwid.results import read_linear, read_nonlinear
     run = H.load_run(full_run)
-    nl, lin = load_nonlinear(full_run / "nonlinear.h5"), load_linear(full_run / "linear.h5")
+    nl, lin = read_nonlinear(full_run / "nonlinear.h5"), read_linear(full_run / "linear.h5")
     figs = {i.name: i.figure for i in H.build_figures(run)}
     # Fig. 12: the truth is h_bar of eq. (30c) on the plotted grid, the estimate is stage 1's h
     ax = figs["h"].axes[0]
@@ -285,12 +284,11 @@ def test_full_report_figures_hold_truth_and_estimates(full_run):
 
 
 def test_full_report_tables(full_run):
-    from hwid.identify.linear import load_linear
-    from hwid.identify.nonlinear import load_nonlinear
+    from hwid.results import read_linear, read_nonlinear
     from hwid.results import read_records
     import h5py
     page = (full_run / "report" / "report.html").read_text()
-    nl, lin = load_nonlinear(full_run / "nonlinear.h5"), load_linear(full_run / "linear.h5")
+    nl, lin = read_nonlinear(full_run / "nonlinear.h5"), read_linear(full_run / "linear.h5")
     with h5py.File(full_run / "simulation.h5") as f:
         recs = read_records(f["experiments"])
     # Table 1, j = 5 (U = 0.2) and j = 21 (U = -1.4): estimate [interval], truth, the paper's two values
@@ -460,7 +458,8 @@ protocols:
 
 def test_batch_directory(tmp_path, tmp_path_factory):
     import concurrent.futures as cf
-    from hwid.batch import load_summary, run_batch
+    from hwid.batch import run_batch
+    from hwid.results import read_batch_summary
     cfg = _cfg(tmp_path_factory, FAST, "fast.yaml")
     with cf.ThreadPoolExecutor(1) as ex:      # in-process: no worker start-up in a unit test
         run_batch(cfg, 1, tmp_path, [("plant.noise.std", [0.01, 0.03])], executor=ex, progress=False)
@@ -470,7 +469,7 @@ def test_batch_directory(tmp_path, tmp_path_factory):
     assert names == ["batch_nonlinear"]                          # no sines: no stage 2 estimates
     assert "id='batch'" in page and "Monte Carlo" in page
     assert "is missing" not in page                               # a batch directory has no stage files
-    summ = load_summary(tmp_path / "batch.h5")
+    summ = read_batch_summary(tmp_path / "batch.h5")
     run = H.load_run(tmp_path)
     fig = [i.figure for i in H.build_figures(run) if i.name == "batch_nonlinear"][0]
     r = _line(fig.axes[0], "rmse:d_plus")

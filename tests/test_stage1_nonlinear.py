@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from hwid import HwidError, config, protocols
-from hwid.identify.nonlinear import (NonlinearEstimator, identify_nonlinear, load_nonlinear, save_nonlinear,
-                                     table1_rows)
+from hwid.identify.nonlinear import NonlinearEstimator, identify_nonlinear, table1_rows
 from hwid.identify.steady import steady_levels
 from hwid.model import from_config
 from hwid.plant import make_plant
+from hwid.results import read_nonlinear, write_nonlinear
 
 # An asymmetric Backlash (S^a != S^d), G with a zero (num has 2 coefficients) and G(0) = 0.5, and an h
 # with an even term that is not invertible: normalised h_bar(w) = w + 1.9 w^2 + w^3 (decreasing on
@@ -362,11 +362,11 @@ def test_save_load_and_simulation_h5(tmp_path):
     res_data, records = identify_nonlinear(cfg, data=sim)
     res_plant, _ = identify_nonlinear(cfg)                    # same seed, same experiment names: same noise
     assert res_data.d_plus == res_plant.d_plus and res_data.X_hat == res_plant.X_hat
-    path = save_nonlinear(tmp_path / "out", cfg, res_data, records)
+    path = write_nonlinear(tmp_path / "out", cfg, res_data, records)
     assert path.name == "nonlinear.h5"
     with open_results(path, "nonlinear", cfg) as f:
         assert set(f["experiments"]) == {"staircase_up", "staircase_down"}
-    back = load_nonlinear(tmp_path / "out", cfg)
+    back = read_nonlinear(tmp_path / "out", cfg)
     for key in ("type", "d_plus", "slope_down", "d_minus", "h_coefficients", "degree", "flat_up", "flat_down",
                 "levels", "X_hat", "X_hat_se", "w_range", "evidence", "warnings", "param_names", "method"):
         assert getattr(back, key) == getattr(res_data, key), key

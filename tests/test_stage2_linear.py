@@ -1,8 +1,6 @@
 """Stage 2 (Section 5): G(j omega) behind the pre-compensator, against the truth."""
 import json
-import sys
 from pathlib import Path
-import types
 import warnings
 
 import numpy as np
@@ -11,9 +9,10 @@ from scipy import stats
 
 from hwid import HwidError, config, protocols
 from hwid.identify.linear import (ExtrapolationWarning, KnownNonlinear, LinearEstimator, crlb, fisher,
-                                  identify_linear, load_linear, save_linear)
+                                  identify_linear)
 from hwid.model import InputNonlinearity, from_config
 from hwid.plant import Record
+from hwid.results import read_linear, write_linear
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -149,8 +148,8 @@ def test_save_load_roundtrip_and_json(paper_cfg, tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ExtrapolationWarning)
         res, recs = identify_linear(cfg, KnownNonlinear.from_config(cfg))
-    p = save_linear(tmp_path / "linear.h5", cfg, res, recs)
-    back = load_linear(p, cfg)
+    p = write_linear(tmp_path / "linear.h5", cfg, res, recs)
+    back = read_linear(p, cfg)
     np.testing.assert_allclose(back.gain, res.gain)
     np.testing.assert_allclose(back.phase_ci, res.phase_ci)
     assert back.parametric["num"] == pytest.approx(res.parametric["num"])
@@ -234,9 +233,8 @@ def test_cli_identify_linear(paper_cfg, tmp_path, monkeypatch):
     small = tmp_path / "small.yaml"
     cfg = _small(paper_cfg, **{"protocols.sine.frequencies": [0.1, 0.2]})
     small.write_text(cfg.source_text)
-    fake = types.ModuleType("hwid.identify.nonlinear")
-    fake.load_nonlinear = lambda path, cfg=None: KnownNonlinear.from_config(cfg)
-    monkeypatch.setitem(sys.modules, "hwid.identify.nonlinear", fake)
+    import hwid.results
+    monkeypatch.setattr(hwid.results, "read_nonlinear", lambda path, cfg=None: KnownNonlinear.from_config(cfg))
     (tmp_path / "nonlinear.h5").write_bytes(b"")
     with pytest.raises(SystemExit) as ex:
         main(["identify-linear", str(small), "--nonlinear", str(tmp_path / "nonlinear.h5"),

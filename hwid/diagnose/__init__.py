@@ -16,7 +16,7 @@ Steps (:func:`diagnose`):
    the validation experiments; rank; verdict (:mod:`hwid.diagnose.rank`);
 5. write ``OUT/diagnosis.h5`` (records, residuals before/after, ranking) and the JSON summary.
 
-For the report: :func:`load_diagnosis`, :func:`plot_residual_map`, :func:`plot_ranking`.
+For the report: :func:`plot_residual_map`, :func:`plot_ranking`.
 """
 from __future__ import annotations
 
@@ -27,9 +27,10 @@ import numpy as np
 
 from hwid import HwidError
 from hwid.diagnose.effects import BLOCK, CATALOGUE, ModelSim, Scale, catalogue
-from hwid.diagnose.figures import load_diagnosis, plot_ranking, plot_residual_map
+from hwid.diagnose.figures import plot_ranking, plot_residual_map
+from hwid.results import write_diagnosis
 
-__all__ = ["diagnose", "load_model", "load_diagnosis", "plot_residual_map", "plot_ranking", "CATALOGUE",
+__all__ = ["diagnose", "load_model", "plot_residual_map", "plot_ranking", "CATALOGUE",
            "BLOCK"]
 
 # An identified model carries its own error: the gap test's smallest mean-square excess that counts
@@ -119,14 +120,13 @@ def load_model(spec, cfg=None, plant=None, out_dir=None, echo=print):
     if spec is not None:
         p = Path(spec)
         if p.is_dir():
-            from hwid.identify.linear import load_linear
-            from hwid.identify.nonlinear import load_nonlinear
+            from hwid.results import read_linear, read_nonlinear
             for name in ("nonlinear.h5", "linear.h5"):
                 if not (p / name).exists():
                     raise HwidError(f"--model {p}: no {name} in that directory (write one with 'hwid run')")
-            nl = load_nonlinear(p / "nonlinear.h5")
+            nl = read_nonlinear(p / "nonlinear.h5")
             notes: list = []
-            m = model_from_results(nl, load_linear(p / "linear.h5"), notes)
+            m = model_from_results(nl, read_linear(p / "linear.h5"), notes)
             for t in notes:
                 echo(t)
             return m, {"source": "results", "path": str(p), "w_range": [float(x) for x in nl.w_range],
@@ -138,16 +138,17 @@ def load_model(spec, cfg=None, plant=None, out_dir=None, echo=print):
         raise HwidError(f"{cfg.source_path}: without --model, diagnose identifies the model first and "
                         f"needs both protocols.staircase and protocols.sine")
     try:
-        from hwid.identify.linear import identify_linear, save_linear
-        from hwid.identify.nonlinear import identify_nonlinear, save_nonlinear
+        from hwid.identify.linear import identify_linear
+        from hwid.identify.nonlinear import identify_nonlinear
+        from hwid.results import write_linear, write_nonlinear
     except ImportError as err:
         raise HwidError(f"identification is not available in this installation ({err}); give --model") from None
     t0 = time.perf_counter()
     nl, nl_rec = identify_nonlinear(cfg, plant=plant)
     lin, lin_rec = identify_linear(cfg, nl, plant=plant)
     if out_dir is not None:
-        save_nonlinear(Path(out_dir) / "nonlinear.h5", cfg, nl, nl_rec)
-        save_linear(Path(out_dir) / "linear.h5", cfg, lin, lin_rec)
+        write_nonlinear(Path(out_dir) / "nonlinear.h5", cfg, nl, nl_rec)
+        write_linear(Path(out_dir) / "linear.h5", cfg, lin, lin_rec)
     echo(f"identified the model ({time.perf_counter() - t0:.1f} s): {nl.type}, d+ = {nl.d_plus:.4g}, "
          f"d- = {nl.d_minus:.4g}, S^d = {nl.slope_down:.4g}, h degree {nl.degree}, "
          f"G = {list(np.round(lin.parametric.get('num', []), 4))}/{list(np.round(lin.parametric.get('den', []), 4))}")
@@ -401,8 +402,7 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
                  "seconds_model": t_model, "seconds_rig_validation": t_rig, "seconds_analysis": t_fit,
                  "seconds_total": time.perf_counter() - t_start},
     }
-    _write_h5(out / "diagnosis.h5", cfg, summary, exps, records, sim_fit, sim_val, fit_idx, val_idx,
-              res_before, res_after, cands)
+    _write_h5(out / "diagnosis.h5", cfg, summary, exps, records, sim_fit, sim_val, fit_idx, val_idx, res_after)
     write_json(Path(json_path) if json_path else out / "diagnosis.json", summary)
     echo(f"verdict: {name} (block {block}, explained {ef:.2f}); gap {gap_before:.4g} -> {gap_after:.4g}, "
          f"noise floor {nf.sigma:.4g}")
@@ -446,39 +446,15 @@ def _rms(x) -> float:
     return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
 
 
-def _write_h5(path, cfg, summary, exps, records, sim_fit, sim_val, fit_idx, val_idx, res_before, res_after, cands):
-    import json
-    from hwid.results import atomic_h5, write_provenance
-    x_model = {}
-    for j, i in enumerate(fit_idx):
-        x_model[i] = sim_fit.x[j]
-    for j, i in enumerate(val_idx):
-        x_model[i] = sim_val.x[j]
+def _write_h5(path, cfg, summary, exps, records, sim_fit, sim_val, fit_idx, val_idx, res_after):
+    """``diagnosis.h5`` through :func:`hwid.results.write_diagnosis`: each experiment's input, the
+    plant's output, the model's (before) and, for validation experiments, the model's with the
+    leading effect added (after)."""
+    x_model = {i: sim_fit.x[j] for j, i in enumerate(fit_idx)}
+    x_model.update({i: sim_val.x[j] for j, i in enumerate(val_idx)})
     after = {i: records[i].y - res_after[j] for j, i in enumerate(val_idx)}
-    with atomic_h5(path) as f:
-        write_provenance(f, "diagnosis", cfg)
-        f.attrs["summary"] = json.dumps(summary, default=_plain)
-        g = f.require_group("experiments")
-        for i, (e, r) in enumerate(zip(exps, records)):
-            h = g.require_group(e.name)
-            for key, arr in (("u", r.u), ("y", r.y), ("y_model", x_model[i]), ("mask", e.mask.astype(np.int8)),
-                             ("region", e.region)):
-                h.create_dataset(key, data=np.asarray(arr), compression="gzip", shuffle=True)
-            if e.z is not None:
-                h.create_dataset("z", data=e.z, compression="gzip", shuffle=True)
-            if i in after:
-                h.create_dataset("y_after", data=after[i], compression="gzip", shuffle=True)
-            h.attrs["dt"] = r.dt
-            h.attrs["kind"] = e.kind
-            h.attrs["role"] = e.role
-            h.attrs["repeat_of"] = e.repeat_of or ""
-            h.attrs["variable"] = json.dumps(e.variable)
-        f.attrs["experiment_order"] = json.dumps([e.name for e in exps])
-
-
-def _plain(o):
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    raise TypeError(type(o).__name__)
+    rows = [{"name": e.name, "u": r.u, "y": r.y, "y_model": x_model[i], "mask": e.mask, "region": e.region,
+             "z": e.z, "y_after": after.get(i), "dt": r.dt, "kind": e.kind, "role": e.role,
+             "repeat_of": e.repeat_of, "variable": e.variable}
+            for i, (e, r) in enumerate(zip(exps, records))]
+    write_diagnosis(path, cfg, summary, rows)

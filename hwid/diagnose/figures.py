@@ -1,4 +1,4 @@
-"""Reading ``diagnosis.h5`` back as plain data, and the diagnosis figures for ``hwid report``.
+"""The diagnosis figures for ``hwid report`` (from :func:`hwid.results.read_diagnosis`'s plain data).
 
 Figures return their ``Figure`` and never show it (the report saves them with the Agg backend).
 """
@@ -8,33 +8,6 @@ import json
 from pathlib import Path
 
 import numpy as np
-
-
-def load_diagnosis(path) -> dict:
-    """Plain data of ``diagnosis.h5``: ``summary`` (the JSON summary) and ``experiments``, a dict
-    name -> {t, u, y, y_model, y_after (validation only), z, mask, region, kind, role, repeat_of,
-    variable}, in the order they were run. Raises :class:`hwid.results.ResultsError` when the file
-    is missing, broken or not a diagnosis."""
-    from hwid.results import ResultsError, open_results
-    path = Path(path)
-    with open_results(path, "diagnosis") as f:
-        try:
-            summary = json.loads(f.attrs["summary"])
-            order = json.loads(f.attrs["experiment_order"])
-            exps = {}
-            for name in order:
-                g = f["experiments"][name]
-                dt = float(g.attrs["dt"])
-                e = {k: np.asarray(g[k][()]) for k in g.keys()}
-                e["mask"] = e["mask"].astype(bool)
-                e["t"] = np.arange(e["u"].size) * dt
-                e.update({"dt": dt, "kind": str(g.attrs["kind"]), "role": str(g.attrs["role"]),
-                          "repeat_of": str(g.attrs["repeat_of"]) or None,
-                          "variable": json.loads(g.attrs["variable"])})
-                exps[name] = e
-        except (KeyError, ValueError, OSError, TypeError) as err:
-            raise ResultsError(f"{path}: not a complete diagnosis ({type(err).__name__}: {err})") from None
-    return {"summary": summary, "experiments": exps}
 
 
 def _validation(diag):
@@ -49,7 +22,7 @@ def plot_residual_map(diag, ax=None):
     Parameters
     ----------
     diag : dict
-        :func:`load_diagnosis` output.
+        :func:`hwid.results.read_diagnosis` output.
     ax : pair of Axes, optional
     """
     import matplotlib.pyplot as plt

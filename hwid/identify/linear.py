@@ -39,6 +39,7 @@ from hwid import HwidError
 from hwid.blocks.static import polyval
 from hwid.identify.harmonics import HarmonicFit, HarmonicModel, fit_harmonics, period_sums, span_projector
 from hwid.identify.lm import lm
+from hwid.identify.result import LinearResult, plain
 
 
 @njit(cache=True)
@@ -638,68 +639,6 @@ def _numeric_harmonics(hm: HarmonicModel, r: float, phi: float, W, ks, M: int | 
 
 # -------------------------------------------------------------------------------------------- results
 
-@dataclass(frozen=True)
-class LinearResult:
-    """Stage 2 result: the frequency response estimates, their intervals, the bound and the
-    parametric model. Plain data; ``to_dict()`` feeds both the JSON and the HDF5 writers.
-
-    ``phase`` is ``phi(omega) = -arg G(j omega)`` in rad (Table 2), unwrapped across frequency
-    from the principal value at the lowest one. ``crlb_gain``/``crlb_phase`` are *variance* bounds.
-    """
-
-    frequencies: np.ndarray
-    amplitude: float
-    gain: np.ndarray
-    gain_ci: np.ndarray          # (n, 2)
-    phase: np.ndarray
-    phase_ci: np.ndarray
-    cov: np.ndarray              # (n, 2, 2) of (gain, phase)
-    method: str
-    crlb_gain: np.ndarray
-    crlb_phase: np.ndarray
-    parametric: dict
-    harmonics: tuple             # per frequency: dict (HarmonicFit.to_dict() + model + estimates)
-    extrapolated: np.ndarray
-    warnings: tuple[str, ...] = ()
-    precompensator: str = "auto"
-
-    @property
-    def response(self) -> np.ndarray:
-        """``G_hat(j omega) = |G| e^{-j phi}``."""
-        return self.gain * np.exp(-1j * self.phase)
-
-    def to_dict(self, full: bool = False) -> dict:
-        """Plain Python data (JSON). ``full`` adds the per-frequency harmonic fits (HDF5)."""
-        lst = lambda a: np.asarray(a, float).tolist()  # noqa: E731
-        d = {"frequencies": lst(self.frequencies), "amplitude": float(self.amplitude),
-             "gain": lst(self.gain), "gain_ci": lst(self.gain_ci), "phase": lst(self.phase),
-             "phase_ci": lst(self.phase_ci), "gain_se": lst(np.sqrt(self.cov[:, 0, 0])),
-             "phase_se": lst(np.sqrt(self.cov[:, 1, 1])), "method": self.method,
-             "crlb_gain": lst(self.crlb_gain), "crlb_phase": lst(self.crlb_phase),
-             "parametric": _plain(self.parametric), "extrapolated": [bool(x) for x in self.extrapolated],
-             "warnings": list(self.warnings), "precompensator": self.precompensator}
-        if full:
-            d["cov"] = np.asarray(self.cov, float)
-            d["harmonics"] = {str(i): h for i, h in enumerate(self.harmonics)}
-        else:
-            d["estimates"] = [_plain(h.get("estimates", {})) for h in self.harmonics]
-        return d
-
-
-def _plain(x):
-    if isinstance(x, dict):
-        return {str(k): _plain(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _plain(x.tolist())
-    if isinstance(x, (np.floating, np.integer, np.bool_)):
-        return x.item()
-    if isinstance(x, complex):
-        return [x.real, x.imag]
-    return x
-
-
 def _estimator(cfg) -> LinearEstimator:
     lc = cfg.identification.linear
     return LinearEstimator(method=lc.method, harmonic=lc.harmonic,
@@ -869,39 +808,3 @@ def identify_linear(cfg, nonlinear, plant=None, journal_dir=None, progress: bool
     res = estimate_response(records, sines, nonlinear, cfg,
                             precompensator=cfg.identification.linear.precompensator)
     return res, records
-
-
-# ------------------------------------------------------------------------------------------- storage
-
-def save_linear(path, cfg, result: LinearResult, records=()) -> Path:
-    """Write ``linear.h5`` (hwid_kind ``linear``): the result and the sine records."""
-    from hwid.results import atomic_h5, write_dict, write_provenance, write_records
-    path = Path(path)
-    with atomic_h5(path) as f:
-        write_provenance(f, "linear", cfg)
-        d = result.to_dict(full=True)
-        write_dict(f.require_group("result"), d)
-        if records:
-            # ground-truth internals of the long sine records: the last two periods suffice (periodic)
-            tail = {r.name: int(np.ceil(2 * 2 * np.pi / float(r.attrs["omega"]) / r.dt)) + 2
-                    for r in records if "omega" in r.attrs}
-            write_records(f.require_group("experiments"), records, truth_tail=tail)
-    return path
-
-
-def load_linear(path, cfg=None) -> LinearResult:
-    """Read ``linear.h5`` back into a :class:`LinearResult`."""
-    from hwid.results import ResultsError, open_results, read_dict
-    with open_results(path, "linear", cfg) as f:
-        if "result" not in f:
-            raise ResultsError(f"{path}: has no 'result' group (an interrupted write?)")
-        d = read_dict(f["result"])
-    harm = d.get("harmonics", {})
-    harmonics = tuple(harm[k] for k in sorted(harm, key=int))
-    arr = lambda k: np.asarray(d[k], float)  # noqa: E731
-    par = d.get("parametric", {}) or {}
-    return LinearResult(arr("frequencies"), float(d["amplitude"]), arr("gain"), arr("gain_ci").reshape(-1, 2),
-                        arr("phase"), arr("phase_ci").reshape(-1, 2), arr("cov").reshape(-1, 2, 2),
-                        str(d["method"]), arr("crlb_gain"), arr("crlb_phase"), par, harmonics,
-                        np.asarray(d["extrapolated"], bool), tuple(d.get("warnings", ()) or ()),
-                        str(d.get("precompensator", "auto")))

@@ -66,7 +66,9 @@ from scipy import stats
 
 from hwid import HwidError
 from hwid.identify.lm import lm
+from hwid.identify.result import NonlinearResult
 from hwid.identify.steady import SteadyLevels, steady_levels
+from hwid import paper
 from hwid.model import InputNonlinearity
 
 TYPES = ("backlash", "backlash_inverse")
@@ -78,87 +80,6 @@ class NonlinearIdentificationError(HwidError):
 
 
 # ----------------------------------------------------------------------------------------- result
-
-@dataclass(frozen=True)
-class NonlinearResult:
-    """Stage-1 estimates for the normalised model of eqs. (4a-c): ``slope_up = 1``, ``G(0) = 1``.
-
-    ``ci`` maps each estimate to its 95 % interval: ``slope_down``, ``d_plus``, ``d_minus`` to
-    ``(lo, hi)``, ``h_coefficients`` and ``X_hat`` to lists of pairs. ``cov`` is the covariance of
-    ``param_names`` = ``(c1..cp, d_plus, slope_down, d_minus)``. ``levels``, ``X_hat``,
-    ``X_hat_se`` hold the ascending staircase's levels then the descending one's (``fit['n_up']``
-    of them ascending).
-    """
-
-    type: str
-    slope_up: float
-    slope_down: float
-    d_plus: float
-    d_minus: float
-    h_coefficients: tuple[float, ...]
-    degree: int
-    w_range: tuple[float, float]
-    ci: dict
-    cov: np.ndarray
-    param_names: tuple[str, ...]
-    levels: tuple[float, ...]
-    X_hat: tuple[float, ...]
-    X_hat_se: tuple[float, ...]
-    flat_up: int
-    flat_down: int
-    method: str
-    evidence: str
-    warnings: tuple[str, ...]
-    fit: dict = field(default_factory=dict)   # diagnostics: chi2, dof, n_up, selection table, ...
-
-    def input_nonlinearity(self) -> InputNonlinearity:
-        """The normalised ``F_bar`` (eq. 4a) as an :class:`hwid.model.InputNonlinearity`."""
-        return InputNonlinearity(self.type, 1.0, self.slope_down, self.d_plus, self.d_minus)
-
-    def h(self, w) -> np.ndarray:
-        """``h_bar(w)`` (eq. 4c), ascending-power coefficients ``h_coefficients``."""
-        return np.polynomial.polynomial.polyval(np.asarray(w, float), self.h_coefficients)
-
-    def to_dict(self) -> dict:
-        """Plain data for JSON and HDF5 (the ``--json`` summary of ``hwid identify-nonlinear``)."""
-        d: dict[str, Any] = {
-            "type": self.type, "slope_up": self.slope_up, "slope_down": self.slope_down,
-            "d_plus": self.d_plus, "d_minus": self.d_minus,
-            "h_coefficients": list(self.h_coefficients), "degree": self.degree,
-            "levels": list(self.levels), "X_hat": list(self.X_hat), "X_hat_se": list(self.X_hat_se),
-            "flat_up": self.flat_up, "flat_down": self.flat_down,
-            "n_up": int(self.fit.get("n_up", len(self.levels))),
-        }
-        for key, val in self.ci.items():
-            d[f"{key}_ci"] = [list(v) for v in val] if key in ("h_coefficients", "X_hat") else list(val)
-        d.update({"evidence": self.evidence, "warnings": list(self.warnings), "method": self.method,
-                  "w_range": list(self.w_range), "param_names": list(self.param_names),
-                  "cov": np.asarray(self.cov).tolist()})
-        d["fit"] = {k: v for k, v in self.fit.items()}
-        return d
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "NonlinearResult":
-        """Inverse of :meth:`to_dict`."""
-        def pairs(v):
-            return [tuple(float(x) for x in p) for p in np.asarray(v, float).reshape(-1, 2)]
-        ci = {}
-        for key in ("slope_up", "slope_down", "d_plus", "d_minus"):
-            if f"{key}_ci" in d:
-                ci[key] = tuple(float(x) for x in np.ravel(d[f"{key}_ci"]))
-        for key in ("h_coefficients", "X_hat"):
-            if f"{key}_ci" in d:
-                ci[key] = pairs(d[f"{key}_ci"])
-        tup = lambda v: tuple(float(x) for x in np.ravel(v))  # noqa: E731
-        return cls(type=str(d["type"]), slope_up=float(d["slope_up"]), slope_down=float(d["slope_down"]),
-                   d_plus=float(d["d_plus"]), d_minus=float(d["d_minus"]),
-                   h_coefficients=tup(d["h_coefficients"]), degree=int(d["degree"]),
-                   w_range=tup(d["w_range"]), ci=ci, cov=np.asarray(d["cov"], float),
-                   param_names=tuple(str(x) for x in d["param_names"]), levels=tup(d["levels"]),
-                   X_hat=tup(d["X_hat"]), X_hat_se=tup(d["X_hat_se"]), flat_up=int(d["flat_up"]),
-                   flat_down=int(d["flat_down"]), method=str(d["method"]), evidence=str(d["evidence"]),
-                   warnings=tuple(str(w) for w in (d.get("warnings") or [])), fit=dict(d.get("fit") or {}))
-
 
 # ----------------------------------------------------------------------------------- the model
 
@@ -1246,57 +1167,7 @@ def identify_nonlinear(cfg, plant=None, data=None, journal_dir=None):
     return est.result_, [ru, rd]
 
 
-def save_nonlinear(path, cfg, result: NonlinearResult, records=()) -> Path:
-    """Write ``DIR/nonlinear.h5`` (``hwid_kind = "nonlinear"``): group ``result`` (the plain data of
-    :meth:`NonlinearResult.to_dict`) and group ``experiments`` (the staircase records)."""
-    from hwid.results import atomic_h5, write_dict, write_provenance, write_records
-    path = Path(path)
-    out = path if path.suffix == ".h5" else path / "nonlinear.h5"
-    d = result.to_dict()
-    fit = d.pop("fit")
-    with atomic_h5(out) as f:
-        write_provenance(f, "nonlinear", cfg)
-        g = f.require_group("result")
-        write_dict(g, {k: v for k, v in d.items() if k not in ("warnings", "param_names")})
-        import json
-        g.attrs["warnings"] = json.dumps(list(result.warnings))
-        g.attrs["param_names"] = json.dumps(list(result.param_names))
-        g.attrs["fit"] = json.dumps(fit, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o))
-        if records:
-            write_records(f.require_group("experiments"), records)
-    return out
-
-
-def load_nonlinear(path, cfg=None) -> NonlinearResult:
-    """Read a :class:`NonlinearResult` from ``nonlinear.h5`` (or a directory holding it)."""
-    import json
-    from hwid.results import open_results, read_dict
-    path = Path(path)
-    if path.is_dir():
-        path = path / "nonlinear.h5"
-    with open_results(path, "nonlinear", cfg) as f:
-        if "result" not in f:
-            raise NonlinearIdentificationError(f"{path}: holds no stage-1 result")
-        g = f["result"]
-        d = read_dict(g)
-        d["warnings"] = json.loads(g.attrs["warnings"])
-        d["param_names"] = json.loads(g.attrs["param_names"])
-        d["fit"] = json.loads(g.attrs["fit"])
-    return NonlinearResult.from_dict(d)
-
-
 # ---------------------------------------------------------------------------------- Table 1
-
-#: The paper's Table 1 (Section 6.1): j, U_j, X_j(M) (true) and X_hat_j(M) (the paper's estimate).
-PAPER_TABLE1 = (
-    (5, 0.2, -0.075, -0.076), (6, 0.4, -0.047, -0.048), (7, 0.6, 0.047, 0.045), (8, 0.8, 0.075, 0.074),
-    (9, 1.0, 0.03, 0.028), (10, 1.2, 0.27, 0.26),
-    (16, 0.0, 0.03, 0.031), (17, -0.3, 0.075, 0.076), (18, -0.6, -0.047, -0.046), (19, -1.0, -0.03, -0.029),
-    (20, -1.2, -0.27, -0.265), (21, -1.4, -1.78, -1.775),
-)
-#: The paper's border estimates (Section 6.1): d^+, S^d, d^-.
-PAPER_BORDERS = {"d_plus": 0.503, "slope_down": 1.01, "d_minus": -0.49}
-
 
 def table1_rows(cfg, result: NonlinearResult) -> dict:
     """Table 1 side by side for a simulated config: for every level j (1-based over both staircases)
@@ -1306,10 +1177,9 @@ def table1_rows(cfg, result: NonlinearResult) -> dict:
     from hwid.model import from_config
     truth = from_config(cfg.plant).normalised()
     up, down = protocols.staircases(cfg)
-    state = _NEG if truth.input.type == "backlash" else 0.0
-    Xt = np.concatenate([truth.output(truth.input.steady(up.all_levels, state))[up.lead_in.size:],
-                         truth.output(truth.input.steady(down.all_levels, state))[down.lead_in.size:]])
-    paper = {j: (x, xh) for j, _, x, xh in PAPER_TABLE1}
+    Xt = np.concatenate([truth.staircase_steady(up.lead_in, up.levels),
+                         truth.staircase_steady(down.lead_in, down.levels)])
+    published = {r.j: (r.X, r.X_hat) for r in paper.TABLE1}
     # simultaneous (Sidak) 95 % intervals over all levels of the table: each pointwise interval
     # widened from z_{0.975} to z_{(1 + 0.95^{1/n})/2}, so all n hold the truth together w.p. 95 %
     from scipy import stats
@@ -1317,7 +1187,7 @@ def table1_rows(cfg, result: NonlinearResult) -> dict:
     widen = stats.norm.ppf(0.5 + 0.5 * 0.95 ** (1.0 / n)) / stats.norm.ppf(0.975)
     rows = []
     for j, (u, x, ci, xt) in enumerate(zip(result.levels, result.X_hat, result.ci["X_hat"], Xt), start=1):
-        px, pxh = paper.get(j, (None, None))
+        px, pxh = published.get(j, (None, None))
         half = 0.5 * (ci[1] - ci[0]) * widen
         cj = (x - half, x + half)
         rows.append({"j": j, "U": u, "paper_X": px, "paper_X_hat": pxh, "true_X": float(xt), "X_hat": x,
@@ -1327,7 +1197,7 @@ def table1_rows(cfg, result: NonlinearResult) -> dict:
     borders = []
     for k in ("d_plus", "slope_down", "d_minus"):
         ci = result.ci[k]
-        borders.append({"name": k, "paper": PAPER_BORDERS[k], "true": float(true_b[k]),
+        borders.append({"name": k, "paper": paper.BORDERS[k], "true": float(true_b[k]),
                         "ours": float(getattr(result, k)), "ci": tuple(ci),
                         "inside": bool(ci[0] <= true_b[k] <= ci[1])})
     return {"rows": rows, "borders": borders}

@@ -482,7 +482,7 @@ def _sweep_axis(summary: Mapping):
 
 def plot_batch_summary(summary: Mapping, names: Sequence[str] | None = None, ax=None) -> Figure:
     """RMSE (with the CRLB standard deviation as a dashed line) and 95 % interval coverage of each
-    estimate against the swept key, from :func:`hwid.batch.load_summary`'s dict.
+    estimate against the swept key, from :func:`hwid.results.read_batch_summary`'s dict.
 
     RMSE is drawn relative to ``|truth|`` where the truth is nonzero (so estimates of different scale
     share one axis); the CRLB line is scaled the same way.

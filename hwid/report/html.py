@@ -4,9 +4,9 @@
 
 =====================  =========================================================================
 ``simulation.h5``      the experiments (staircases, sines) and, for simulated plants, the truth
-``nonlinear.h5``       stage 1 (:func:`hwid.identify.nonlinear.load_nonlinear`)
-``linear.h5``          stage 2 (:func:`hwid.identify.linear.load_linear`)
-``batch.h5``           Monte Carlo summaries (:func:`hwid.batch.load_summary`)
+``nonlinear.h5``       stage 1 (:func:`hwid.results.read_nonlinear`)
+``linear.h5``          stage 2 (:func:`hwid.results.read_linear`)
+``batch.h5``           Monte Carlo summaries (:func:`hwid.results.read_batch_summary`)
 =====================  =========================================================================
 
 and writes into ``DIR/report/``: every figure as ``NAME.png`` and ``NAME.svg``, ``figures.json``
@@ -30,6 +30,7 @@ import numpy as np
 
 from hwid import HwidError, __version__
 from hwid.report import figures as F
+from hwid.results import ResultsError, read_batch_summary, read_diagnosis, read_linear, read_nonlinear
 
 FILES = ("simulation.h5", "nonlinear.h5", "linear.h5", "batch.h5", "diagnosis.h5")
 
@@ -63,7 +64,7 @@ class RunData:
     truth: Any = None                           # normalised true HWModel (simulated plants)
     nonlinear: Any = None                       # stage 1 result
     linear: Any = None                          # stage 2 result
-    batch: dict | None = None                   # hwid.batch.load_summary(...)
+    batch: dict | None = None                   # hwid.results.read_batch_summary(...)
     diagnosis: dict | None = None               # hwid.diagnose.load_diagnosis(...)
     notes: list[str] = field(default_factory=list)   # what is missing, what could not be shown
 
@@ -156,13 +157,13 @@ def load_run(directory: str | Path) -> RunData:
 
     batch_only = (present["batch.h5"] or present["diagnosis.h5"]) and not any(present[n] for n in FILES[:3])
     if present["nonlinear.h5"]:
-        run.nonlinear = _load_stage("hwid.identify.nonlinear", "load_nonlinear", d / "nonlinear.h5", run)
+        run.nonlinear = read_nonlinear(d / "nonlinear.h5", run.cfg)
         _records_from(d / "nonlinear.h5", "nonlinear", run)
     elif not batch_only:
         run.notes.append("nonlinear.h5 is missing: stage 1 (the input and output nonlinearities) has not "
                          "run here; run `hwid run` or the stage 1 command to get Table 1 and Figs. 9, 12")
     if present["linear.h5"]:
-        run.linear = _load_stage("hwid.identify.linear", "load_linear", d / "linear.h5", run)
+        run.linear = read_linear(d / "linear.h5", run.cfg)
         _records_from(d / "linear.h5", "linear", run)
     elif not batch_only:
         run.notes.append("linear.h5 is missing: stage 2 (G(jω)) has not run here; Table 2 and the Bode "
@@ -170,30 +171,13 @@ def load_run(directory: str | Path) -> RunData:
     if not present["simulation.h5"] and not run.records and not batch_only:
         run.notes.append("simulation.h5 is missing: no measured experiments to plot")
     if present["batch.h5"]:
-        try:
-            from hwid.batch import load_summary
-        except ImportError:
-            run.notes.append("batch.h5 is present but this hwid has no batch module to read it")
-        else:
-            run.batch = load_summary(d / "batch.h5")
+        run.batch = read_batch_summary(d / "batch.h5")
     if present["diagnosis.h5"]:
-        from hwid.diagnose.figures import load_diagnosis
-        from hwid.results import ResultsError
         try:
-            run.diagnosis = load_diagnosis(d / "diagnosis.h5")
+            run.diagnosis = read_diagnosis(d / "diagnosis.h5")
         except ResultsError as err:
             run.notes.append(f"diagnosis.h5 could not be read ({err})")
     return run
-
-
-def _load_stage(module: str, func: str, path: Path, run: RunData):
-    import importlib
-    try:
-        loader = getattr(importlib.import_module(module), func)
-    except (ImportError, AttributeError):
-        run.notes.append(f"{path.name} is present but this hwid cannot read it ({module}.{func} is missing)")
-        return None
-    return loader(path, run.cfg) if run.cfg is not None else loader(path)
 
 
 SIGNALS = ("u", "y", "x")     # what the figures draw (v, w, z are not read: they are large)
@@ -437,9 +421,7 @@ def staircase_views(run: RunData) -> dict[str, StaircaseView]:
         if rec.x is not None:
             v.X_true = rec.x[stops - 1]
         elif run.truth is not None:
-            all_lv = np.concatenate([lead, levels])
-            state = -1e300 if run.truth.input.type == "backlash" else 0.0
-            v.X_true = run.truth.steady_output(all_lv, state=state)[lead.size:]
+            v.X_true = run.truth.staircase_steady(lead, levels)
         if X[k] is not None and X[k].size == levels.size:
             v.X_hat = X[k]
             if CI[k] is not None and CI[k].size == levels.size:
@@ -595,8 +577,7 @@ def steady_w(f, rec) -> np.ndarray | None:
     levels, lead = _attr_list(rec, "levels"), _attr_list(rec, "lead_in")
     if levels is None or lead is None:
         return None
-    state = -1e300 if f.type == "backlash" else 0.0   # below every border: the lead-in sets the state
-    return np.asarray(f.steady(np.concatenate([lead, levels]), state), float)[lead.size:]
+    return f.staircase_steady(lead, levels)
 
 
 def _points_on_w(run, views, f_est):

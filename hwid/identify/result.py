@@ -1,0 +1,157 @@
+"""The stage results as plain frozen data: :class:`NonlinearResult` (stage 1, Section 4) and
+:class:`LinearResult` (stage 2, Section 5).
+
+Each has a ``to_dict()`` that the JSON and HDF5 writers share (:mod:`hwid.results` stores and reads
+them); nothing here computes an estimate.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hwid.model import InputNonlinearity
+
+
+@dataclass(frozen=True)
+class NonlinearResult:
+    """Stage-1 estimates for the normalised model of eqs. (4a-c): ``slope_up = 1``, ``G(0) = 1``.
+
+    ``ci`` maps each estimate to its 95 % interval: ``slope_down``, ``d_plus``, ``d_minus`` to
+    ``(lo, hi)``, ``h_coefficients`` and ``X_hat`` to lists of pairs. ``cov`` is the covariance of
+    ``param_names`` = ``(c1..cp, d_plus, slope_down, d_minus)``. ``levels``, ``X_hat``,
+    ``X_hat_se`` hold the ascending staircase's levels then the descending one's (``fit['n_up']``
+    of them ascending).
+    """
+
+    type: str
+    slope_up: float
+    slope_down: float
+    d_plus: float
+    d_minus: float
+    h_coefficients: tuple[float, ...]
+    degree: int
+    w_range: tuple[float, float]
+    ci: dict
+    cov: np.ndarray
+    param_names: tuple[str, ...]
+    levels: tuple[float, ...]
+    X_hat: tuple[float, ...]
+    X_hat_se: tuple[float, ...]
+    flat_up: int
+    flat_down: int
+    method: str
+    evidence: str
+    warnings: tuple[str, ...]
+    fit: dict = field(default_factory=dict)   # diagnostics: chi2, dof, n_up, selection table, ...
+
+    def input_nonlinearity(self) -> InputNonlinearity:
+        """The normalised ``F_bar`` (eq. 4a) as an :class:`hwid.model.InputNonlinearity`."""
+        return InputNonlinearity(self.type, 1.0, self.slope_down, self.d_plus, self.d_minus)
+
+    def h(self, w) -> np.ndarray:
+        """``h_bar(w)`` (eq. 4c), ascending-power coefficients ``h_coefficients``."""
+        return np.polynomial.polynomial.polyval(np.asarray(w, float), self.h_coefficients)
+
+    def to_dict(self) -> dict:
+        """Plain data for JSON and HDF5 (the ``--json`` summary of ``hwid identify-nonlinear``)."""
+        d: dict[str, Any] = {
+            "type": self.type, "slope_up": self.slope_up, "slope_down": self.slope_down,
+            "d_plus": self.d_plus, "d_minus": self.d_minus,
+            "h_coefficients": list(self.h_coefficients), "degree": self.degree,
+            "levels": list(self.levels), "X_hat": list(self.X_hat), "X_hat_se": list(self.X_hat_se),
+            "flat_up": self.flat_up, "flat_down": self.flat_down,
+            "n_up": int(self.fit.get("n_up", len(self.levels))),
+        }
+        for key, val in self.ci.items():
+            d[f"{key}_ci"] = [list(v) for v in val] if key in ("h_coefficients", "X_hat") else list(val)
+        d.update({"evidence": self.evidence, "warnings": list(self.warnings), "method": self.method,
+                  "w_range": list(self.w_range), "param_names": list(self.param_names),
+                  "cov": np.asarray(self.cov).tolist()})
+        d["fit"] = {k: v for k, v in self.fit.items()}
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "NonlinearResult":
+        """Inverse of :meth:`to_dict`."""
+        def pairs(v):
+            return [tuple(float(x) for x in p) for p in np.asarray(v, float).reshape(-1, 2)]
+        ci = {}
+        for key in ("slope_up", "slope_down", "d_plus", "d_minus"):
+            if f"{key}_ci" in d:
+                ci[key] = tuple(float(x) for x in np.ravel(d[f"{key}_ci"]))
+        for key in ("h_coefficients", "X_hat"):
+            if f"{key}_ci" in d:
+                ci[key] = pairs(d[f"{key}_ci"])
+        tup = lambda v: tuple(float(x) for x in np.ravel(v))  # noqa: E731
+        return cls(type=str(d["type"]), slope_up=float(d["slope_up"]), slope_down=float(d["slope_down"]),
+                   d_plus=float(d["d_plus"]), d_minus=float(d["d_minus"]),
+                   h_coefficients=tup(d["h_coefficients"]), degree=int(d["degree"]),
+                   w_range=tup(d["w_range"]), ci=ci, cov=np.asarray(d["cov"], float),
+                   param_names=tuple(str(x) for x in d["param_names"]), levels=tup(d["levels"]),
+                   X_hat=tup(d["X_hat"]), X_hat_se=tup(d["X_hat_se"]), flat_up=int(d["flat_up"]),
+                   flat_down=int(d["flat_down"]), method=str(d["method"]), evidence=str(d["evidence"]),
+                   warnings=tuple(str(w) for w in (d.get("warnings") or [])), fit=dict(d.get("fit") or {}))
+
+
+@dataclass(frozen=True)
+class LinearResult:
+    """Stage 2 result: the frequency response estimates, their intervals, the bound and the
+    parametric model. Plain data; ``to_dict()`` feeds both the JSON and the HDF5 writers.
+
+    ``phase`` is ``phi(omega) = -arg G(j omega)`` in rad (Table 2), unwrapped across frequency
+    from the principal value at the lowest one. ``crlb_gain``/``crlb_phase`` are *variance* bounds.
+    """
+
+    frequencies: np.ndarray
+    amplitude: float
+    gain: np.ndarray
+    gain_ci: np.ndarray          # (n, 2)
+    phase: np.ndarray
+    phase_ci: np.ndarray
+    cov: np.ndarray              # (n, 2, 2) of (gain, phase)
+    method: str
+    crlb_gain: np.ndarray
+    crlb_phase: np.ndarray
+    parametric: dict
+    harmonics: tuple             # per frequency: dict (HarmonicFit.to_dict() + model + estimates)
+    extrapolated: np.ndarray
+    warnings: tuple[str, ...] = ()
+    precompensator: str = "auto"
+
+    @property
+    def response(self) -> np.ndarray:
+        """``G_hat(j omega) = |G| e^{-j phi}``."""
+        return self.gain * np.exp(-1j * self.phase)
+
+    def to_dict(self, full: bool = False) -> dict:
+        """Plain Python data (JSON). ``full`` adds the per-frequency harmonic fits (HDF5)."""
+        lst = lambda a: np.asarray(a, float).tolist()  # noqa: E731
+        d = {"frequencies": lst(self.frequencies), "amplitude": float(self.amplitude),
+             "gain": lst(self.gain), "gain_ci": lst(self.gain_ci), "phase": lst(self.phase),
+             "phase_ci": lst(self.phase_ci), "gain_se": lst(np.sqrt(self.cov[:, 0, 0])),
+             "phase_se": lst(np.sqrt(self.cov[:, 1, 1])), "method": self.method,
+             "crlb_gain": lst(self.crlb_gain), "crlb_phase": lst(self.crlb_phase),
+             "parametric": plain(self.parametric), "extrapolated": [bool(x) for x in self.extrapolated],
+             "warnings": list(self.warnings), "precompensator": self.precompensator}
+        if full:
+            d["cov"] = np.asarray(self.cov, float)
+            d["harmonics"] = {str(i): h for i, h in enumerate(self.harmonics)}
+        else:
+            d["estimates"] = [plain(h.get("estimates", {})) for h in self.harmonics]
+        return d
+
+
+def plain(x):
+    if isinstance(x, dict):
+        return {str(k): plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [plain(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return plain(x.tolist())
+    if isinstance(x, (np.floating, np.integer, np.bool_)):
+        return x.item()
+    if isinstance(x, complex):
+        return [x.real, x.imag]
+    return x
