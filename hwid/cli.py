@@ -187,6 +187,20 @@ def diagnose(config: Path = typer.Argument(..., help="Config YAML: its plant is 
     run(cfg, _out_dir(out), model=model, json_path=json_out, echo=typer.echo)
 
 
+@app.command()
+def compare(model: Path = typer.Argument(..., help="The model: an 'hwid run' directory or a plant YAML "
+                                         "(kind hammerstein_wiener)."),
+            config: Path = typer.Argument(..., help="Config YAML whose experiments (recorded, simulated or a "
+                                          "live rig) the model is compared with."),
+            out: Path = typer.Option(..., "--out", help="Output directory (compare.h5, compare.json)."),
+            json_out: Optional[Path] = typer.Option(None, "--json", help="JSON summary (default OUT/compare.json).")):
+    """The model's free run against every experiment: fit %, RMS error, residual tests."""
+    from hwid import config as C
+    from hwid.compare import compare as run
+    cfg = C.load(config)
+    run(model, cfg, _out_dir(out), json_path=json_out, echo=typer.echo)
+
+
 def main(argv: Optional[list[str]] = None) -> None:
     """Entry point: run the app, map user errors to one line and exit code 2."""
     try:

@@ -126,14 +126,14 @@ class HWModel:
         k = self.input.scale * self.linear.dc_gain
         return HWModel(self.input.normalised(), self.linear.normalised(), self.output.scaled(k))
 
-    def simulate(self, u, dt: float, gear: float | None = None) -> Signals:
+    def simulate(self, u, dt: float, gear: float | None = None, rest: float | None = None) -> Signals:
         """The F -> G -> h chain of eqs. (3a-c) on a sampled input: ``v = F[u]`` from the gear state
         ``gear`` (None: the operator's default start at ``u[0]``), ``w`` the exact ZOH response of
-        G from the equilibrium of ``v[0]``, ``x = h(w)``. Every simulation of a model in hwid runs
-        here."""
+        G from rest at the input level ``rest`` (None: the equilibrium of ``v[0]``), ``x = h(w)``.
+        Every simulation of a model in hwid runs here."""
         u = np.ascontiguousarray(u, dtype=float)
         v = self.input.apply(u, gear)
-        w = self.linear.simulate(v, dt)
+        w = self.linear.simulate(v, dt, rest)
         return Signals(v, w, self.output(w), float(v[-1]) if v.size else gear)
 
     def staircase_steady(self, lead_in, levels) -> np.ndarray:

@@ -511,3 +511,32 @@ def read_batch_runs(path: str | Path, point: int = 0) -> dict[str, np.ndarray]:
     with open_results(path, "batch") as f:
         g = f[f"points/p{point}/runs"]
         return {k: g[k][()] for k in g}
+
+
+# ----------------------------------------------------------------------------------- compare.h5
+
+def write_compare(path: str | Path, cfg, summary: dict, records, simulated: dict) -> Path:
+    """Write ``compare.h5`` (``hwid_kind = "compare"``): the JSON summary as the root attribute
+    ``summary``, and the compared experiments (:func:`write_records`) each with a dataset
+    ``y_model`` (the model's free run from the estimated initial state)."""
+    path = Path(path)
+    with atomic_h5(path) as f:
+        write_provenance(f, "compare", cfg)
+        f.attrs["summary"] = json.dumps(summary, default=_json_default)
+        group = f.require_group("experiments")
+        write_records(group, records)
+        for name, y_model in simulated.items():
+            group[name].create_dataset("y_model", data=np.asarray(y_model, float), compression="gzip", shuffle=True)
+    return path
+
+
+def read_compare(path: str | Path) -> dict:
+    """``{"summary": ..., "experiments": {name: Record}, "y_model": {name: array}}`` of ``compare.h5``."""
+    with open_results(path, "compare") as f:
+        try:
+            summary = json.loads(f.attrs["summary"])
+            records = read_records(f["experiments"])
+            y_model = {name: np.asarray(f["experiments"][name]["y_model"][()], float) for name in records}
+        except (KeyError, ValueError, OSError, TypeError) as err:
+            raise ResultsError(f"{path}: not a complete comparison ({type(err).__name__}: {err})") from None
+    return {"summary": summary, "experiments": records, "y_model": y_model}

@@ -80,8 +80,9 @@ class LinearBlock:
     def poles(self) -> np.ndarray:
         return np.roots(self.den)
 
-    def simulate(self, v, dt: float) -> np.ndarray:
-        """Exact ZOH response to the samples ``v``, from the equilibrium of ``v[0]``."""
+    def simulate(self, v, dt: float, rest: float | None = None) -> np.ndarray:
+        """Exact ZOH response to the samples ``v``, from the equilibrium of the input level ``rest``
+        (default ``v[0]``): G at rest with ``w = G(0) rest`` and the delay line holding ``rest``."""
         v = np.ascontiguousarray(v, dtype=float)
         if v.size == 0:
             return v.copy()
@@ -89,7 +90,14 @@ class LinearBlock:
                                                   float(dt))
         if n == 0:  # static gain
             return D * v
-        x0 = np.linalg.solve(np.eye(n) - Phi, (G1 + G0) * v[0])
+        start = v[0] if rest is None else float(rest)
+        x0 = np.linalg.solve(np.eye(n) - Phi, (G1 + G0) * start)
+        if rest is not None:
+            vd = np.concatenate([np.full(lag, start), v[: v.size - lag]]) if lag else v
+            w = _ss_run(vd, Phi, G1, G0, C, D if frac == 0.0 else 0.0, x0, start)
+            if frac != 0.0 and D != 0.0:
+                w = w + D * np.concatenate([[start], vd[:-1]])
+            return w
         vd = np.concatenate([np.full(lag, v[0]), v[: v.size - lag]]) if lag else v
         if frac == 0.0:
             return _ss_run(vd, Phi, G1, G0, C, D, x0, vd[0])

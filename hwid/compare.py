@@ -1,0 +1,201 @@
+"""``hwid compare``: a model's free-run simulation against measured experiments, like the System
+Identification Toolbox's ``compare`` and ``resid``.
+
+Each experiment is simulated from an initial state estimated from its own data: the gear's position
+inside the play at the first sample and the level at which G is at rest (a record starts wherever
+the rig was left, which the model cannot know). Then, per experiment and over all of them:
+
+* the fit in percent, ``100 (1 - ||y - y_hat|| / ||y - mean(y)||)`` (NRMSE fit of ``compare``);
+* the RMS error, and the RMS error over the noise floor where the floor is known;
+* residual tests (``resid``): whiteness (Ljung-Box on the residual's autocorrelation) and
+  correlation with past inputs (the cross-correlation's chi-square statistic), with their p-values.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy import optimize, stats
+
+from hwid import HwidError
+from hwid.model import HWModel
+
+#: lags of the residual tests (``resid``'s default is 25; fewer on short records)
+MAX_LAG = 25
+
+
+@dataclass(frozen=True)
+class ExperimentFit:
+    """One experiment's comparison; ``gear`` and ``rest`` are the estimated initial state."""
+
+    name: str
+    fit_percent: float
+    rms: float
+    samples: int
+    gear: float
+    rest: float
+    whiteness_p: float
+    input_correlation_p: float
+
+
+@dataclass(frozen=True)
+class CompareResult:
+    """The comparison over all experiments; ``to_dict()`` is the ``--json`` output (fixed keys:
+    ``fit_percent``, ``rms``, ``experiments`` [``name``, ``fit_percent``, ``rms``, ``samples``],
+    ``residual`` [``whiteness_p``, ``input_correlation_p``])."""
+
+    fit_percent: float
+    rms: float
+    noise_floor: float | None
+    experiments: tuple[ExperimentFit, ...]
+    whiteness_p: float
+    input_correlation_p: float
+    model: dict
+
+    @property
+    def rms_over_floor(self) -> float | None:
+        return None if not self.noise_floor else self.rms / self.noise_floor
+
+    def to_dict(self) -> dict:
+        return {"fit_percent": self.fit_percent, "rms": self.rms, "noise_floor": self.noise_floor,
+                "rms_over_floor": self.rms_over_floor,
+                "experiments": [asdict(e) for e in self.experiments],
+                "residual": {"whiteness_p": self.whiteness_p, "input_correlation_p": self.input_correlation_p},
+                "model": self.model}
+
+
+def fit_percent(y, y_hat) -> float:
+    """NRMSE fit in percent: 100 means a perfect fit, 0 no better than the mean, negative worse."""
+    y, y_hat = np.asarray(y, float), np.asarray(y_hat, float)
+    spread = np.linalg.norm(y - y.mean())
+    if spread == 0:
+        return 100.0 if np.allclose(y, y_hat) else float("-inf")
+    return float(100.0 * (1.0 - np.linalg.norm(y - y_hat) / spread))
+
+
+def gear_band(model: HWModel, u0: float) -> tuple[float, float]:
+    """The gear states possible at rest at input ``u0``: between the two borders (Backlash, eq. 1)
+    or the two branches (Backlash-Inverse, eq. 2) at ``u0``."""
+    f = model.input
+    a, b = float(f.ascending(u0)), float(f.descending(u0))
+    return (min(a, b), max(a, b))
+
+
+def initial_state(model: HWModel, u, y, dt: float, grid: int = 9) -> tuple[float, float, np.ndarray]:
+    """The initial gear state and G's rest level that make the model's free run closest to ``y``
+    (least squares: a ``grid x grid`` search, then Powell within the bounds). Returns
+    ``(gear, rest, y_hat)``."""
+    u, y = np.asarray(u, float), np.asarray(y, float)
+    lo, hi = gear_band(model, u[0])
+    v_all = model.input.apply(u)
+    span = max(float(np.ptp(v_all)), hi - lo, 1e-9)
+    rest_lo, rest_hi = float(v_all.min()) - 0.5 * span, float(v_all.max()) + 0.5 * span
+
+    def cost(p):
+        x = model.simulate(u, dt, gear=p[0], rest=p[1]).x
+        r = y - x
+        val = float(r @ r)
+        return val if np.isfinite(val) else 1e300
+
+    gears = np.linspace(lo, hi, grid) if hi > lo else np.array([lo])
+    rests = np.linspace(rest_lo, rest_hi, grid)
+    best = min(((g, r) for g in gears for r in rests), key=cost)
+    if hi > lo:
+        res = optimize.minimize(cost, np.array(best), method="Powell",
+                                bounds=[(lo, hi), (rest_lo, rest_hi)], options={"xtol": 1e-6, "ftol": 1e-10})
+        if res.fun <= cost(best):
+            best = tuple(res.x)
+    else:
+        res = optimize.minimize_scalar(lambda r: cost((lo, r)), bounds=(rest_lo, rest_hi), method="bounded")
+        best = (lo, float(res.x))
+    return float(best[0]), float(best[1]), model.simulate(u, dt, gear=best[0], rest=best[1]).x
+
+
+def _lags(n: int) -> int:
+    return int(max(1, min(MAX_LAG, n // 4)))
+
+
+def ljung_box(residual) -> tuple[float, int]:
+    """Ljung-Box statistic of ``residual`` over :data:`MAX_LAG` lags and its degrees of freedom."""
+    e = np.asarray(residual, float) - np.mean(residual)
+    n, m = e.size, _lags(e.size)
+    c0 = float(e @ e)
+    if c0 == 0:
+        return 0.0, m
+    r = np.array([float(e[k:] @ e[:-k]) / c0 for k in range(1, m + 1)])
+    return float(n * (n + 2) * np.sum(r * r / (n - np.arange(1, m + 1)))), m
+
+
+def input_correlation(residual, u) -> tuple[float, int]:
+    """``n sum_k rho_eu(k)^2`` over lags ``k = 0 .. MAX_LAG-1`` (residual against past inputs),
+    chi-square with that many degrees of freedom when the two are uncorrelated."""
+    e = np.asarray(residual, float) - np.mean(residual)
+    x = np.asarray(u, float) - np.mean(u)
+    n, m = e.size, _lags(e.size)
+    scale = np.sqrt(float(e @ e) * float(x @ x))
+    if scale == 0:
+        return 0.0, m
+    rho = np.array([float(e[k:] @ x[:n - k]) / scale for k in range(m)])
+    return float(n * np.sum(rho * rho)), m
+
+
+def compare_records(model: HWModel, records, noise_floor: float | None = None,
+                    model_info: dict | None = None) -> tuple[CompareResult, dict]:
+    """Compare ``model`` with every record; returns the result and ``{name: y_hat}``."""
+    if not records:
+        raise HwidError("compare: the config yields no experiments to compare with")
+    fits, sims = [], {}
+    q_white = q_input = 0.0
+    dof_white = dof_input = 0
+    ys, yhs = [], []
+    for rec in records:
+        gear, rest, y_hat = initial_state(model, rec.u, rec.y, rec.dt)
+        residual = rec.y - y_hat
+        qw, mw = ljung_box(residual)
+        qi, mi = input_correlation(residual, rec.u)
+        q_white, dof_white, q_input, dof_input = q_white + qw, dof_white + mw, q_input + qi, dof_input + mi
+        sims[rec.name] = y_hat
+        ys.append(rec.y)
+        yhs.append(y_hat)
+        fits.append(ExperimentFit(rec.name, fit_percent(rec.y, y_hat), float(np.sqrt(np.mean(residual ** 2))),
+                                  int(rec.y.size), gear, rest, float(stats.chi2.sf(qw, mw)),
+                                  float(stats.chi2.sf(qi, mi))))
+    y_all, yh_all = np.concatenate(ys), np.concatenate(yhs)
+    result = CompareResult(fit_percent(y_all, yh_all), float(np.sqrt(np.mean((y_all - yh_all) ** 2))),
+                           noise_floor, tuple(fits), float(stats.chi2.sf(q_white, dof_white)),
+                           float(stats.chi2.sf(q_input, dof_input)), dict(model_info or {}))
+    return result, sims
+
+
+def experiments_of(cfg, out_dir: Path):
+    """The experiments of ``cfg`` to compare with, and the noise floor where it is known: a
+    recorded plant's records, or the config's protocols run on its plant (simulated or live; a
+    live rig's calls are journalled in ``OUT/rig_journal``)."""
+    from hwid.plant import make_plant
+    from hwid.simulate import run_protocols
+    if cfg.plant.kind == "recorded":
+        from hwid.recorded import load_records
+        return load_records(cfg), None
+    records = run_protocols(cfg, make_plant(cfg, journal_dir=out_dir / "rig_journal"))
+    floor = cfg.plant.noise.std if cfg.plant.kind == "hammerstein_wiener" and cfg.plant.noise.std > 0 else None
+    return records, floor
+
+
+def compare(model_spec, cfg, out_dir, json_path=None, echo=print) -> CompareResult:
+    """``hwid compare MODEL CONFIG --out DIR``: writes ``DIR/compare.h5`` and ``DIR/compare.json``
+    (or ``json_path``); returns the result."""
+    from hwid.diagnose import load_model
+    from hwid.results import write_compare, write_json
+    out = Path(out_dir)
+    model, info = load_model(model_spec, echo=echo)
+    records, floor = experiments_of(cfg, out)
+    result, sims = compare_records(model, records, floor, {k: v for k, v in info.items() if k != "records"})
+    write_compare(out / "compare.h5", cfg, result.to_dict(), records, sims)
+    write_json(Path(json_path) if json_path else out / "compare.json", result.to_dict())
+    for e in result.experiments:
+        echo(f"{e.name}: fit {e.fit_percent:.2f} %, rms {e.rms:.4g} ({e.samples} samples)")
+    tail = "" if result.rms_over_floor is None else f" = {result.rms_over_floor:.3g} x the noise floor"
+    echo(f"overall: fit {result.fit_percent:.2f} %, rms {result.rms:.4g}{tail}; residual whiteness p = "
+         f"{result.whiteness_p:.3g}, input correlation p = {result.input_correlation_p:.3g}")
+    return result
