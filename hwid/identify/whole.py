@@ -1,0 +1,360 @@
+"""The whole model by output error on any input (``identification.whole``).
+
+Fits the normalised model of eqs. (4a-c) in one go: F (type; ``slope_up = 1``, ``slope_down``,
+``d_plus``, ``d_minus``), a rational G(s) with ``G(0) = 1`` (structure selected) and h_bar (degree
+selected, ``h_bar(0) = 0``), by least squares on the free-run (simulation) error of every
+experiment, whatever its input: staircases, sines, random levels joined by ramps, a lab's log.
+Each experiment's initial state is a nuisance parameter: the gear's place inside the play at its
+first sample and the level at which G is at rest (as in :mod:`hwid.compare`).
+
+h_bar enters linearly, so it is solved for at every step (variable projection, Golub and Pereyra):
+the nonlinear search runs over F, G and the initial states only. G is a product of unit-gain
+factors, so every G tried is stable with ``G(0) = 1``:
+
+* a real pole ``a / (s + a)`` (``log a``),
+* a pole pair ``wn^2 / (s^2 + 2 zeta wn s + wn^2)`` (``log wn``, ``log zeta``),
+* a real zero ``tau s + 1`` (``tau`` any sign: a right-half-plane zero is allowed).
+
+The structure (poles, pairs, zeros) and the degree of h_bar are chosen by BIC. Intervals: 95 %,
+from the Gauss-Newton covariance of all parameters (h_bar's coefficients included) with the
+residual variance; the noise is taken as white.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+from scipy import optimize, stats
+
+from hwid import HwidError
+from hwid.blocks.linear import LinearBlock
+from hwid.blocks.static import PolynomialH
+from hwid.model import HWModel, InputNonlinearity
+
+
+@dataclass(frozen=True)
+class Structure:
+    """G's factors: ``poles`` real poles, ``pairs`` pole pairs, ``zeros`` real zeros."""
+
+    poles: int
+    pairs: int
+    zeros: int = 0
+
+    @property
+    def n_params(self) -> int:
+        return self.poles + 2 * self.pairs + self.zeros
+
+    @property
+    def order(self) -> int:
+        return self.poles + 2 * self.pairs
+
+    def __str__(self) -> str:
+        return f"{self.poles}p{self.pairs}q{self.zeros}z"
+
+
+#: structures tried when no start says otherwise: orders 1-3, with or without a zero
+STRUCTURES = (Structure(1, 0), Structure(2, 0), Structure(0, 1), Structure(2, 0, 1), Structure(0, 1, 1),
+              Structure(1, 1), Structure(3, 0))
+
+
+def g_from_params(structure: Structure, p: Sequence[float], delay: float = 0.0) -> LinearBlock:
+    """The unit-gain G(s) of ``structure`` with factor parameters ``p`` (module docstring)."""
+    num, den = np.array([1.0]), np.array([1.0])
+    i = 0
+    for _ in range(structure.poles):
+        a = np.exp(p[i])
+        den = np.polymul(den, [1.0 / a, 1.0])
+        i += 1
+    for _ in range(structure.pairs):
+        wn, zeta = np.exp(p[i]), np.exp(p[i + 1])
+        den = np.polymul(den, [1.0 / wn ** 2, 2 * zeta / wn, 1.0])
+        i += 2
+    for _ in range(structure.zeros):
+        num = np.polymul(num, [p[i], 1.0])
+        i += 1
+    return LinearBlock(tuple(num.tolist()), tuple(den.tolist()), float(delay))
+
+
+def g_params_from(structure: Structure, g: LinearBlock | None, span_s: float, dt: float) -> np.ndarray:
+    """Start values of ``structure``'s factors: from the poles and zeros of ``g`` where it has the
+    same structure, else time constants spread between ``10 dt`` and a tenth of the record."""
+    if g is not None:
+        poles = np.roots(g.den)
+        zeros = np.roots(np.trim_zeros(np.asarray(g.num, float), "f"))
+        real = sorted(-poles[np.abs(poles.imag) < 1e-9].real)
+        cplx = [q for q in poles if q.imag > 1e-9]
+        if len(real) == structure.poles and len(cplx) == structure.pairs and all(r > 0 for r in real) \
+                and len(zeros) >= structure.zeros:
+            p = [np.log(r) for r in real]
+            for q in cplx:
+                wn = abs(q)
+                p += [np.log(wn), np.log(max(-q.real / wn, 1e-3))]
+            p += [float(-1.0 / z.real) if abs(z.real) > 1e-12 else 0.0 for z in zeros[:structure.zeros]]
+            return np.array(p, float)
+    rates = np.geomspace(1.0 / max(span_s / 10, 20 * dt), 1.0 / (10 * dt), structure.order + 2)[1:-1]
+    p = [np.log(r) for r in rates[:structure.poles]]
+    for k in range(structure.pairs):
+        p += [np.log(rates[structure.poles + 2 * k]), np.log(0.5)]
+    p += [0.0] * structure.zeros
+    return np.array(p, float)
+
+
+@dataclass(frozen=True)
+class WholeResult:
+    """The whole-model fit: the normalised model, 95 % intervals, the selection table."""
+
+    type: str
+    slope_down: float
+    d_plus: float
+    d_minus: float
+    h_coefficients: tuple[float, ...]
+    num: tuple[float, ...]
+    den: tuple[float, ...]
+    delay: float
+    structure: str
+    ci: dict
+    sigma: float
+    rms: float
+    samples: int
+    initial_states: dict
+    selection: tuple[dict, ...]
+    warnings: tuple[str, ...] = ()
+
+    def model(self) -> HWModel:
+        return HWModel(InputNonlinearity(self.type, 1.0, self.slope_down, self.d_plus, self.d_minus),
+                       LinearBlock(self.num, self.den, self.delay), PolynomialH(self.h_coefficients))
+
+    def to_dict(self) -> dict:
+        return {"type": self.type, "slope_up": 1.0, "slope_down": self.slope_down, "d_plus": self.d_plus,
+                "d_minus": self.d_minus, "h_coefficients": list(self.h_coefficients),
+                "degree": len(self.h_coefficients) - 1, "num": list(self.num), "den": list(self.den),
+                "delay": self.delay, "structure": self.structure,
+                **{f"{k}_ci": [list(x) for x in v] if k == "h_coefficients" else list(v) for k, v in self.ci.items()},
+                "sigma": self.sigma, "rms": self.rms, "samples": self.samples,
+                "initial_states": self.initial_states, "selection": list(self.selection),
+                "warnings": list(self.warnings)}
+
+
+@dataclass
+class _Problem:
+    """The data and the fixed choices of one fit (F type, G structure, h degree, delay or not)."""
+
+    records: list
+    type: str
+    structure: Structure
+    degree: int
+    with_delay: bool
+    y: np.ndarray = field(init=False)
+
+    def __post_init__(self):
+        self.y = np.concatenate([r.y for r in self.records])
+
+    @property
+    def n_outer(self) -> int:
+        return 3 + self.structure.n_params + int(self.with_delay) + 2 * len(self.records)
+
+    def unpack(self, theta):
+        """``(F, G, [(gear, rest), ...])`` of the outer parameters ``theta``."""
+        d_plus, log_sd, gap = theta[0], theta[1], theta[2]
+        f = InputNonlinearity(self.type, 1.0, float(np.exp(log_sd)), float(d_plus), float(d_plus - np.exp(gap)))
+        k = 3 + self.structure.n_params
+        delay = float(abs(theta[k])) if self.with_delay else 0.0
+        g = g_from_params(self.structure, theta[3:3 + self.structure.n_params], delay)
+        states = []
+        j = k + int(self.with_delay)
+        for r in self.records:
+            lo, hi = sorted((float(f.ascending(r.u[0])), float(f.descending(r.u[0]))))
+            frac = 0.5 * (1.0 + np.tanh(0.5 * theta[j]))
+            states.append((lo + frac * (hi - lo), float(theta[j + 1])))
+            j += 2
+        return f, g, states
+
+    def w(self, theta) -> np.ndarray:
+        f, g, states = self.unpack(theta)
+        out = []
+        for r, (gear, rest) in zip(self.records, states):
+            out.append(g.simulate(f.apply(r.u, gear), r.dt, rest))
+        return np.concatenate(out)
+
+    def design(self, w) -> np.ndarray:
+        return np.vander(w, self.degree + 1, increasing=True)[:, 1:]
+
+    def bounds(self, u_width: float, span_s: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Where the outer parameters may go: borders within twice the input's range, G's rates
+        between a hundredth of the record's inverse length and ten times the sampling rate."""
+        lo = [-np.inf, np.log(0.05), np.log(1e-6 * u_width)]
+        hi = [np.inf, np.log(20.0), np.log(2.0 * u_width)]
+        rate_lo, rate_hi = np.log(0.01 / span_s), np.log(10.0 / dt)
+        for _ in range(self.structure.poles):
+            lo.append(rate_lo)
+            hi.append(rate_hi)
+        for _ in range(self.structure.pairs):
+            lo += [rate_lo, np.log(0.01)]
+            hi += [rate_hi, np.log(10.0)]
+        for _ in range(self.structure.zeros):
+            lo.append(-span_s)
+            hi.append(span_s)
+        if self.with_delay:
+            lo.append(0.0)
+            hi.append(0.5 * span_s)
+        for _ in self.records:
+            lo += [-30.0, -np.inf]
+            hi += [30.0, np.inf]
+        return np.array(lo), np.array(hi)
+
+    def residual(self, theta) -> np.ndarray:
+        """The output error with h_bar solved for (variable projection)."""
+        try:
+            w = self.w(theta)
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+            return np.full(self.y.size, 1e6)
+        if not np.all(np.isfinite(w)) or np.max(np.abs(w)) > 1e6:
+            return np.full(self.y.size, 1e6)
+        phi = self.design(w)
+        c, *_ = np.linalg.lstsq(phi, self.y, rcond=None)
+        return self.y - phi @ c
+
+    def h(self, theta) -> np.ndarray:
+        phi = self.design(self.w(theta))
+        return np.concatenate([[0.0], np.linalg.lstsq(phi, self.y, rcond=None)[0]])
+
+    def full_residual(self, full) -> np.ndarray:
+        """The output error of outer parameters and h_bar's coefficients together (for the covariance)."""
+        theta, c = full[:self.n_outer], full[self.n_outer:]
+        return self.y - self.design(self.w(theta)) @ c
+
+
+class WholeModelFit:
+    """Output-error fit of the whole normalised model (module docstring).
+
+    Parameters
+    ----------
+    max_degree : int
+        Highest degree of h_bar tried (degrees 1..max_degree, chosen by BIC).
+    structures : sequence of Structure, optional
+        G structures tried (default :data:`STRUCTURES`).
+    delay : bool
+        Also fit a pure delay of G.
+    types : sequence of str
+        Input nonlinearity types tried (``"backlash"``, ``"backlash_inverse"``).
+    """
+
+    def __init__(self, max_degree: int = 5, structures: Sequence[Structure] | None = None, delay: bool = False,
+                 types: Sequence[str] = ("backlash", "backlash_inverse"), max_nfev: int = 200):
+        self.max_degree = max_degree
+        self.structures = structures
+        self.delay = delay
+        self.types = types
+        self.max_nfev = max_nfev
+
+    def fit(self, records, start: HWModel | None = None) -> "WholeModelFit":
+        """Fit on ``records`` (each with ``u``, ``y``, ``dt``); ``start`` (a normalised model, e.g.
+        from the two stages) starts the search, otherwise a coarse grid over the borders does."""
+        records = [r for r in records if r.y is not None and r.u.size > 10]
+        if not records:
+            raise HwidError("the whole-model fit needs at least one experiment of more than 10 samples")
+        types = (start.input.type,) if start is not None else tuple(self.types)
+        structures = list(self.structures or STRUCTURES)
+        span = max(r.u.size * r.dt for r in records)
+        dt = min(r.dt for r in records)
+        width = float(np.ptp(np.concatenate([r.u for r in records]))) or 1.0
+        table, best = [], None
+        for kind in types:
+            for structure in structures:
+                theta0 = self._start(records, kind, structure, start)
+                for degree in range(1, self.max_degree + 1):
+                    prob = _Problem(records, kind, structure, degree, self.delay)
+                    lo, hi = prob.bounds(width, span, dt)
+                    sol = optimize.least_squares(prob.residual, np.clip(theta0, lo + 1e-9, hi - 1e-9),
+                                                 bounds=(lo, hi), method="trf", x_scale="jac",
+                                                 max_nfev=self.max_nfev)
+                    rss = float(sol.fun @ sol.fun)
+                    n, k = prob.y.size, prob.n_outer + degree
+                    bic = n * np.log(rss / n) + k * np.log(n)
+                    table.append({"type": kind, "structure": str(structure), "degree": degree, "rss": rss,
+                                  "parameters": k, "bic": float(bic)})
+                    if best is None or bic < best[0]:
+                        best = (bic, prob, sol.x)
+                    theta0 = sol.x
+        _, prob, theta = best
+        self.problem_, self.theta_ = prob, theta
+        self.result_ = self._result(prob, theta, table)
+        return self
+
+    def _start(self, records, kind, structure, start: HWModel | None) -> np.ndarray:
+        """Outer start values: from ``start`` where given, else the best of a coarse border grid
+        (h_bar solved for, G at its default start)."""
+        span = max(r.u.size * r.dt for r in records)
+        dt = records[0].dt
+        g_p = g_params_from(structure, None if start is None else start.linear, span, dt)
+        extra = [0.0] if self.delay else []
+        states = []
+        for r in records:
+            states += [0.0, float(np.median(r.u[: max(3, r.u.size // 50)]))]
+        if start is not None:
+            f = start.input
+            return np.array([f.d_plus, np.log(f.slope_down), np.log(max(f.d_plus - f.d_minus, 1e-6)),
+                             *g_p, *extra, *states], float)
+        u_all = np.concatenate([r.u for r in records])
+        width = float(np.ptp(u_all)) or 1.0
+        centre = float(np.median(u_all))
+        prob = _Problem(records, kind, structure, 3, self.delay)
+        grid = [np.array([centre + a * width, 0.0, np.log(b * width), *g_p, *extra, *states])
+                for a in np.linspace(-0.25, 0.25, 7) for b in (0.02, 0.1, 0.3, 0.6)]
+        costs = [float(np.sum(prob.residual(t) ** 2)) for t in grid]
+        return grid[int(np.argmin(costs))]
+
+    def _result(self, prob: _Problem, theta, table) -> WholeResult:
+        f, g, states = prob.unpack(theta)
+        h = prob.h(theta)
+        full = np.concatenate([theta, h[1:]])
+        r = prob.full_residual(full)
+        n, k = r.size, full.size
+        s2 = float(r @ r) / max(n - k, 1)
+        jac = _jacobian(prob.full_residual, full)
+        warnings = []
+        try:
+            cov = s2 * np.linalg.pinv(jac.T @ jac)
+        except np.linalg.LinAlgError:
+            cov = np.full((k, k), np.nan)
+            warnings.append("the covariance could not be computed (singular Jacobian)")
+        z = stats.norm.ppf(0.975)
+        # intervals of the reported quantities by the delta method on the outer parameters
+        grads = {"d_plus": _grad(lambda t: t[0], full), "slope_down": _grad(lambda t: np.exp(t[1]), full),
+                 "d_minus": _grad(lambda t: t[0] - np.exp(t[2]), full)}
+        ci = {}
+        for name, (value, grad) in grads.items():
+            sd = float(np.sqrt(max(grad @ cov @ grad, 0.0)))
+            ci[name] = (value - z * sd, value + z * sd)
+        sd_h = np.sqrt(np.clip(np.diag(cov)[prob.n_outer:], 0, None))
+        ci["h_coefficients"] = [(0.0, 0.0)] + [(float(c - z * s), float(c + z * s)) for c, s in zip(h[1:], sd_h)]
+        if prob.degree == self.max_degree:
+            warnings.append(f"h_bar's degree is the highest tried ({self.max_degree}); a higher one may fit better")
+        init = {rec.name: {"gear": gear, "rest": rest} for rec, (gear, rest) in zip(prob.records, states)}
+        return WholeResult(f.type, f.slope_down, f.d_plus, f.d_minus, tuple(float(c) for c in h),
+                           g.num, g.den, g.delay, str(prob.structure), ci, float(np.sqrt(s2)),
+                           float(np.sqrt(np.mean(r * r))), int(n), init, tuple(table), tuple(warnings))
+
+
+def _jacobian(fun, x, rel: float = 1e-6) -> np.ndarray:
+    """Central-difference Jacobian of ``fun`` at ``x``."""
+    f0 = fun(x)
+    jac = np.empty((f0.size, x.size))
+    for i in range(x.size):
+        h = rel * max(abs(x[i]), 1e-3)
+        e = np.zeros_like(x)
+        e[i] = h
+        jac[:, i] = (fun(x + e) - fun(x - e)) / (2 * h)
+    return jac
+
+
+def _grad(g, x, rel: float = 1e-7) -> np.ndarray:
+    """Gradient of the scalar ``g`` at ``x`` (central differences); returns ``(g(x), grad)``."""
+    out = np.zeros_like(x)
+    for i in range(x.size):
+        h = rel * max(abs(x[i]), 1e-3)
+        e = np.zeros_like(x)
+        e[i] = h
+        out[i] = (g(x + e) - g(x - e)) / (2 * h)
+    return float(g(x)), out

@@ -1,0 +1,72 @@
+"""The whole-model output-error fit (identification.whole) against a simulated truth, on random
+levels joined by ramps: no staircase, no sine."""
+import numpy as np
+import pytest
+
+import rigs
+from hwid import config
+from hwid.compare import compare_records
+from hwid.identify.whole import Structure, WholeModelFit, g_from_params
+from hwid.model import from_config
+from hwid.plant import Record
+
+Z_JOINT = 3.5     # ~99.9 % per estimate: every estimate of the fit inside it together
+
+
+def _levels_with_ramps(rng, n_levels, hold, ramp, dt, lo=-1.2, hi=1.2):
+    u, current = [], 0.0
+    for _ in range(n_levels):
+        target = rng.uniform(lo, hi)
+        u += list(np.linspace(current, target, int(ramp / dt)))
+        u += [target] * int(hold / dt)
+        current = target
+    return np.array(u)
+
+
+def _plant(**changes):
+    cfg = config.loads(__import__("yaml").safe_dump(rigs.small(**changes)))
+    return cfg, from_config(cfg.plant)
+
+
+def _records(truth, rng, n, dt=0.05, sigma=0.01, gear=0.0):
+    out = []
+    for i in range(n):
+        u = _levels_with_ramps(rng, 20, 3.0, 1.0, dt)
+        x = truth.simulate(u, dt, gear=gear).x
+        out.append(Record(f"levels_{i}", dt, u, x + sigma * rng.standard_normal(u.size)))
+    return out
+
+
+def _inside(est, ci, truth):
+    half = 0.5 * (ci[1] - ci[0]) * Z_JOINT / 1.959964
+    return abs(est - truth) <= half
+
+
+def test_g_factors_have_unit_gain_and_the_given_poles():
+    g = g_from_params(Structure(1, 1, 1), [np.log(2.0), np.log(3.0), np.log(0.2), 0.5])
+    assert g.dc_gain == pytest.approx(1.0)
+    poles = np.sort_complex(np.roots(g.den))
+    assert np.any(np.isclose(poles, -2.0))
+    assert np.allclose(np.abs(poles[np.abs(poles.imag) > 0]), 3.0)
+    assert np.roots(g.num) == pytest.approx([-2.0])
+
+
+def test_whole_fit_recovers_the_model_from_random_levels():
+    _, truth = _plant(**{"plant.output_nonlinearity.polynomial": [0, 1.0, 0.8, -0.6],
+                         "plant.input_nonlinearity.slope_down": 1.3})
+    norm = truth.normalised()
+    rng = np.random.default_rng(11)
+    fit = WholeModelFit(max_degree=4, structures=[Structure(1, 0), Structure(2, 0)],
+                        types=("backlash",)).fit(_records(truth, rng, 2))
+    res = fit.result_
+    assert res.type == "backlash" and res.structure == "1p0q0z" and len(res.h_coefficients) == 4
+    for name in ("d_plus", "d_minus", "slope_down"):
+        assert _inside(getattr(res, name), res.ci[name], getattr(norm.input, name)), name
+    for c, ci, t in zip(res.h_coefficients[1:], res.ci["h_coefficients"][1:], norm.output.coefficients[1:]):
+        assert _inside(c, ci, t)
+    assert np.roots(res.den) == pytest.approx([-2.0], rel=0.02)
+    assert 0.95 < res.sigma / 0.01 < 1.05
+    # held out: another random record, simulated from its own estimated initial state
+    held_out = _records(truth, np.random.default_rng(99), 1, gear=0.3)
+    cmp, _ = compare_records(res.model(), held_out, noise_floor=0.01)
+    assert cmp.rms_over_floor < 1.1
