@@ -1,0 +1,177 @@
+"""What an unexplained remainder looks like: tests on the residual ``r = y - y_model``.
+
+Each test regresses the residual on one kind of signal the model lacks and asks whether the
+coefficients are zero. The residual is autocorrelated (coloured noise, and the model's error passes
+through G), so each regression is prewhitened by the residual's own AR filter (feasible GLS):
+
+* ``direction_of_motion`` - on the sign of the input's last move (held while the input rests): a
+  remainder that depends on which way the input last went (hysteresis, friction);
+* ``varying_gain`` - on the model output times the session time, with the model output itself as a
+  control: a remainder that scales with the output and changes over the course of the tests;
+* ``loop`` - on past model outputs, the present one as a control: the remainder follows the output's
+  history beyond the model (the output feeds back, or the dynamics differ). Past *measured*
+  outputs would carry the noise's own correlation, which is not a loop;
+* ``harmonics`` - on sines and cosines at the harmonics of a sine experiment's fundamental: a
+  periodic remainder the model lacks.
+
+:func:`residual_structure` returns the significant ones (Bonferroni over the tests run) as
+``{"kind", "evidence", "p_value"}``, most significant first, or one ``{"kind": "none", ...}`` item.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+#: family-wise level of the tests together
+ALPHA = 0.01
+#: harmonics of the fundamental tested on sine experiments
+HARMONICS = 5
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One experiment's stretch to test: input, measured and model output, sample time, the
+    samples that count (``mask``), and the fundamental (rad/s) of a sine experiment."""
+
+    u: np.ndarray
+    y: np.ndarray
+    y_model: np.ndarray
+    dt: float
+    mask: np.ndarray | None = None
+    omega: float | None = None
+
+    @property
+    def keep(self) -> np.ndarray:
+        return np.ones(self.u.size, bool) if self.mask is None else np.asarray(self.mask, bool)
+
+
+def _whitening(e, order: int) -> np.ndarray:
+    """The AR(``order``) prediction-error filter ``[1, -a_1, ..., -a_p]`` of ``e`` (least squares)."""
+    n = e.size
+    if n <= 4 * order:
+        return np.array([1.0])
+    E = np.column_stack([e[order - k - 1:n - k - 1] for k in range(order)])
+    a, *_ = np.linalg.lstsq(E, e[order:], rcond=None)
+    return np.concatenate([[1.0], -a])
+
+
+def gls_wald(r, X, controls=None, ar_order: int = 8) -> tuple[float, int]:
+    """Wald statistic that the coefficients of ``X`` are zero in ``r ~ 1 + controls + X``;
+    chi-square with ``X.shape[1]`` degrees of freedom under the null.
+
+    The residual's own correlation is taken out first (feasible GLS: an AR(``ar_order``) filter
+    fitted to the least-squares residual is applied to both sides), then the classical covariance
+    of the whitened regression applies."""
+    r = np.asarray(r, float)
+    X = np.atleast_2d(np.asarray(X, float).T).T
+    parts = [np.ones((r.size, 1))] + ([np.atleast_2d(np.asarray(controls, float).T).T] if controls is not None else []) + [X]
+    A = np.hstack(parts)
+    spread = A.std(axis=0)
+    A = A / np.where(spread > 0, spread, 1.0)       # columns on one scale: the test is unchanged, its numerics better
+    coef, *_ = np.linalg.lstsq(A, r, rcond=None)
+    filt = _whitening(r - A @ coef, ar_order)
+    p = filt.size - 1
+    r_w = np.convolve(r, filt)[p:r.size]
+    A_w = np.column_stack([np.convolve(col, filt)[p:r.size] for col in A.T])
+    coef, *_ = np.linalg.lstsq(A_w, r_w, rcond=None)
+    e = r_w - A_w @ coef
+    s2 = float(e @ e) / max(e.size - A_w.shape[1], 1)
+    cov = s2 * np.linalg.pinv(A_w.T @ A_w)
+    q = X.shape[1]
+    b = coef[-q:]
+    return float(b @ np.linalg.pinv(cov[-q:, -q:]) @ b), q
+
+
+def last_direction(u) -> np.ndarray:
+    """+1 where the input last moved up, -1 where it last moved down, 0 before its first move."""
+    du = np.diff(np.asarray(u, float), prepend=u[0])
+    step = np.sign(du)
+    idx = np.where(step != 0, np.arange(step.size), 0)
+    np.maximum.accumulate(idx, out=idx)
+    out = step[idx]
+    out[idx == 0] = step[0]
+    return out
+
+
+def _lagged(x, k: int) -> np.ndarray:
+    return np.concatenate([np.full(k, x[0]), x[:-k]]) if k else x
+
+
+def _test_direction(segs) -> tuple[float, int, str] | None:
+    r = np.concatenate([(s.y - s.y_model)[s.keep] for s in segs])
+    d = np.concatenate([last_direction(s.u)[s.keep] for s in segs])
+    if np.all(d == d[0]):
+        return None
+    stat, q = gls_wald(r, d)
+    shift = float(np.mean(r[d > 0]) - np.mean(r[d < 0])) if np.any(d > 0) and np.any(d < 0) else 0.0
+    return stat, q, f"the residual after rising inputs differs from that after falling ones by {shift:.3g}"
+
+
+def _test_varying_gain(segs) -> tuple[float, int, str] | None:
+    r = np.concatenate([(s.y - s.y_model)[s.keep] for s in segs])
+    x = np.concatenate([s.y_model[s.keep] for s in segs])
+    if r.size < 20 or np.ptp(x) == 0:
+        return None
+    t = np.linspace(-1.0, 1.0, r.size)      # session time, in the order the experiments ran
+    xc = x - x.mean()
+    stat, q = gls_wald(r, xc * t, controls=xc)
+    return stat, q, "the residual scales with the model output by a factor that changes over the session"
+
+
+def _test_loop(segs, lags=(2, 8, 32)) -> tuple[float, int, str] | None:
+    r, now, past = [], [], []
+    for s in segs:
+        keep = s.keep
+        r.append((s.y - s.y_model)[keep])
+        now.append(s.y_model[keep])
+        past.append(np.column_stack([_lagged(s.y_model, k)[keep] for k in lags]))
+    r = np.concatenate(r)
+    if r.size < 20 * len(lags):
+        return None
+    stat, q = gls_wald(r, np.vstack(past), controls=np.concatenate(now))
+    return stat, q, (f"the residual depends on past outputs (lags {list(lags)} samples) beyond the model: "
+                     f"the output feeds back, or the dynamics differ from the model's")
+
+
+def _test_harmonics(segs) -> tuple[float, int, str] | None:
+    stat, q, found = 0.0, 0, []
+    for s in segs:
+        if not s.omega:
+            continue
+        keep = s.keep
+        t = np.arange(s.u.size)[keep] * s.dt
+        r = (s.y - s.y_model)[keep]
+        ks = [k for k in range(1, HARMONICS + 1) if k * s.omega < np.pi / s.dt]
+        if r.size < 4 * len(ks) + 10 or not ks:
+            continue
+        X = np.column_stack([f(k * s.omega * t) for k in ks for f in (np.sin, np.cos)])
+        st, qq = gls_wald(r, X)
+        stat, q = stat + st, q + qq
+        found.append(f"{s.omega:g} rad/s")
+    if not q:
+        return None
+    return stat, q, f"the residual is periodic at harmonics 1-{HARMONICS} of the sine experiments ({', '.join(found)})"
+
+
+def residual_structure(segments, alpha: float = ALPHA) -> list[dict]:
+    """The significant structures of the residual (module docstring), most significant first; one
+    ``{"kind": "none", ...}`` item when no test rejects at the family-wise level ``alpha``."""
+    segs = [s for s in segments if s.u.size and np.any(s.keep)]
+    tests = {"direction_of_motion": _test_direction, "varying_gain": _test_varying_gain,
+             "loop": _test_loop, "harmonics": _test_harmonics}
+    results = []
+    for kind, test in tests.items():
+        out = test(segs) if segs else None
+        if out is None:
+            continue
+        stat, q, evidence = out
+        results.append({"kind": kind, "evidence": evidence, "p_value": float(stats.chi2.sf(stat, q))})
+    level = alpha / max(len(results), 1)
+    found = sorted((r for r in results if r["p_value"] < level), key=lambda r: r["p_value"])
+    if found:
+        return found
+    p_min = min((r["p_value"] for r in results), default=1.0)
+    return [{"kind": "none", "evidence": f"no test of {', '.join(r['kind'] for r in results) or 'the residual'} "
+             f"rejects at the family-wise level {alpha:g}", "p_value": float(p_min)}]
