@@ -197,9 +197,26 @@ class LinearIdCfg(_Strict):
     noise_model: Literal["auto", "white", "periodic"] = "auto"   # harmonic standard errors (stage 2)
 
 
+class WholeIdCfg(_Strict):
+    """The whole-model output-error fit (hwid.identify.whole), run by ``hwid run`` when enabled.
+
+    max_degree: highest degree of h_bar tried (selected by BIC); max_order: highest order of G
+    tried (1-3; structures with and without a zero); delay: also fit a pure delay of G;
+    input_type: auto (both types tried, BIC decides; the stages' type when they ran) | backlash |
+      backlash_inverse.
+    """
+
+    enabled: bool = False
+    max_degree: Annotated[int, Field(ge=1, le=9)] = 5
+    max_order: Annotated[int, Field(ge=1, le=3)] = 3
+    delay: bool = False
+    input_type: Literal["auto", "backlash", "backlash_inverse"] = "auto"
+
+
 class IdentificationCfg(_Strict):
     nonlinear: NonlinearIdCfg = NonlinearIdCfg()
     linear: LinearIdCfg = LinearIdCfg()
+    whole: WholeIdCfg = WholeIdCfg()
 
 
 class Config(_Strict):

@@ -15,7 +15,7 @@ a normalised Backlash-Inverse has ``slope_up = 1``, ``slope_down = S^d/S^a``, ``
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from typing import Literal
 
 import numpy as np

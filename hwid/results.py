@@ -28,7 +28,7 @@ import h5py
 import numpy as np
 
 from hwid import HwidError, __version__
-from hwid.identify.result import LinearResult, NonlinearResult, plain
+from hwid.identify.result import LinearResult, NonlinearResult, WholeResult, plain
 from hwid.plant import Record
 
 FORMAT = 1
@@ -540,3 +540,24 @@ def read_compare(path: str | Path) -> dict:
         except (KeyError, ValueError, OSError, TypeError) as err:
             raise ResultsError(f"{path}: not a complete comparison ({type(err).__name__}: {err})") from None
     return {"summary": summary, "experiments": records, "y_model": y_model}
+
+
+# ---------------------------------------------------------------------------- whole.h5 (whole model)
+
+def write_whole(path: str | Path, cfg, result: WholeResult) -> Path:
+    """Write ``whole.h5`` (``hwid_kind = "whole"``): the whole-model fit's plain data
+    (:meth:`WholeResult.to_dict`) as the root attribute ``result`` (JSON)."""
+    path = Path(path)
+    with atomic_h5(path) as f:
+        write_provenance(f, "whole", cfg)
+        f.attrs["result"] = json.dumps(result.to_dict(), default=_json_default)
+    return path
+
+
+def read_whole(path: str | Path, cfg=None) -> WholeResult:
+    """The :class:`WholeResult` of ``whole.h5``."""
+    with open_results(path, "whole", cfg) as f:
+        try:
+            return WholeResult.from_dict(json.loads(f.attrs["result"]))
+        except (KeyError, ValueError, TypeError) as err:
+            raise ResultsError(f"{path}: not a complete whole-model result ({type(err).__name__}: {err})") from None

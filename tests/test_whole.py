@@ -70,3 +70,13 @@ def test_whole_fit_recovers_the_model_from_random_levels():
     held_out = _records(truth, np.random.default_rng(99), 1, gear=0.3)
     cmp, _ = compare_records(res.model(), held_out, noise_floor=0.01)
     assert cmp.rms_over_floor < 1.1
+
+
+def test_whole_result_round_trips_through_whole_h5(tmp_path):
+    from hwid.results import read_whole, write_whole
+    cfg, truth = _plant()
+    fit = WholeModelFit(max_degree=2, structures=[Structure(1, 0)], types=("backlash",)).fit(
+        _records(truth, np.random.default_rng(3), 1))
+    path = write_whole(tmp_path / "whole.h5", cfg, fit.result_)
+    back = read_whole(path, cfg)
+    assert back == fit.result_

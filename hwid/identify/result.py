@@ -1,5 +1,5 @@
-"""The stage results as plain frozen data: :class:`NonlinearResult` (stage 1, Section 4) and
-:class:`LinearResult` (stage 2, Section 5).
+"""The identification results as plain frozen data: :class:`NonlinearResult` (stage 1, Section 4),
+:class:`LinearResult` (stage 2, Section 5) and :class:`WholeResult` (the whole-model fit).
 
 Each has a ``to_dict()`` that the JSON and HDF5 writers share (:mod:`hwid.results` stores and reads
 them); nothing here computes an estimate.
@@ -11,7 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from hwid.model import InputNonlinearity
+from hwid.blocks.linear import LinearBlock
+from hwid.blocks.static import PolynomialH
+from hwid.model import HWModel, InputNonlinearity
 
 
 @dataclass(frozen=True)
@@ -155,3 +157,50 @@ def plain(x):
     if isinstance(x, complex):
         return [x.real, x.imag]
     return x
+
+
+@dataclass(frozen=True)
+class WholeResult:
+    """The whole-model fit: the normalised model, 95 % intervals, the selection table."""
+
+    type: str
+    slope_down: float
+    d_plus: float
+    d_minus: float
+    h_coefficients: tuple[float, ...]
+    num: tuple[float, ...]
+    den: tuple[float, ...]
+    delay: float
+    structure: str
+    ci: dict
+    sigma: float
+    rms: float
+    samples: int
+    initial_states: dict
+    selection: tuple[dict, ...]
+    warnings: tuple[str, ...] = ()
+
+    def model(self) -> HWModel:
+        return HWModel(InputNonlinearity(self.type, 1.0, self.slope_down, self.d_plus, self.d_minus),
+                       LinearBlock(self.num, self.den, self.delay), PolynomialH(self.h_coefficients))
+
+    def to_dict(self) -> dict:
+        """Plain data for JSON and ``whole.h5``."""
+        return {"type": self.type, "slope_up": 1.0, "slope_down": self.slope_down, "d_plus": self.d_plus,
+                "d_minus": self.d_minus, "h_coefficients": list(self.h_coefficients),
+                "degree": len(self.h_coefficients) - 1, "num": list(self.num), "den": list(self.den),
+                "delay": self.delay, "structure": self.structure,
+                **{f"{k}_ci": [list(x) for x in v] if k == "h_coefficients" else list(v) for k, v in self.ci.items()},
+                "sigma": self.sigma, "rms": self.rms, "samples": self.samples,
+                "initial_states": self.initial_states, "selection": list(self.selection),
+                "warnings": list(self.warnings)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "WholeResult":
+        """Inverse of :meth:`to_dict`."""
+        ci = {k: tuple(d[f"{k}_ci"]) for k in ("slope_down", "d_plus", "d_minus")}
+        ci["h_coefficients"] = [tuple(p) for p in d["h_coefficients_ci"]]
+        return cls(str(d["type"]), float(d["slope_down"]), float(d["d_plus"]), float(d["d_minus"]),
+                   tuple(d["h_coefficients"]), tuple(d["num"]), tuple(d["den"]), float(d["delay"]),
+                   str(d["structure"]), ci, float(d["sigma"]), float(d["rms"]), int(d["samples"]),
+                   dict(d["initial_states"]), tuple(d["selection"]), tuple(d.get("warnings", ())))

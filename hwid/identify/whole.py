@@ -29,7 +29,7 @@ from scipy import optimize, stats
 
 from hwid import HwidError
 from hwid.blocks.linear import LinearBlock
-from hwid.blocks.static import PolynomialH
+from hwid.identify.result import WholeResult
 from hwid.model import HWModel, InputNonlinearity
 
 
@@ -98,42 +98,6 @@ def g_params_from(structure: Structure, g: LinearBlock | None, span_s: float, dt
         p += [np.log(rates[structure.poles + 2 * k]), np.log(0.5)]
     p += [0.0] * structure.zeros
     return np.array(p, float)
-
-
-@dataclass(frozen=True)
-class WholeResult:
-    """The whole-model fit: the normalised model, 95 % intervals, the selection table."""
-
-    type: str
-    slope_down: float
-    d_plus: float
-    d_minus: float
-    h_coefficients: tuple[float, ...]
-    num: tuple[float, ...]
-    den: tuple[float, ...]
-    delay: float
-    structure: str
-    ci: dict
-    sigma: float
-    rms: float
-    samples: int
-    initial_states: dict
-    selection: tuple[dict, ...]
-    warnings: tuple[str, ...] = ()
-
-    def model(self) -> HWModel:
-        return HWModel(InputNonlinearity(self.type, 1.0, self.slope_down, self.d_plus, self.d_minus),
-                       LinearBlock(self.num, self.den, self.delay), PolynomialH(self.h_coefficients))
-
-    def to_dict(self) -> dict:
-        return {"type": self.type, "slope_up": 1.0, "slope_down": self.slope_down, "d_plus": self.d_plus,
-                "d_minus": self.d_minus, "h_coefficients": list(self.h_coefficients),
-                "degree": len(self.h_coefficients) - 1, "num": list(self.num), "den": list(self.den),
-                "delay": self.delay, "structure": self.structure,
-                **{f"{k}_ci": [list(x) for x in v] if k == "h_coefficients" else list(v) for k, v in self.ci.items()},
-                "sigma": self.sigma, "rms": self.rms, "samples": self.samples,
-                "initial_states": self.initial_states, "selection": list(self.selection),
-                "warnings": list(self.warnings)}
 
 
 @dataclass
@@ -247,6 +211,14 @@ class WholeModelFit:
         self.delay = delay
         self.types = types
         self.max_nfev = max_nfev
+
+    @classmethod
+    def from_config(cls, cfg) -> "WholeModelFit":
+        """The estimator of ``cfg.identification.whole``."""
+        whole = cfg.identification.whole
+        types = ("backlash", "backlash_inverse") if whole.input_type == "auto" else (whole.input_type,)
+        return cls(max_degree=whole.max_degree, structures=[s for s in STRUCTURES if s.order <= whole.max_order],
+                   delay=whole.delay, types=types)
 
     def fit(self, records, start: HWModel | None = None) -> "WholeModelFit":
         """Fit on ``records`` (each with ``u``, ``y``, ``dt``); ``start`` (a normalised model, e.g.
