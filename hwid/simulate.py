@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-
 from hwid import protocols
 from hwid.model import from_config
 from hwid.plant import SimulatedPlant, make_plant
