@@ -21,7 +21,8 @@ from typing import Literal
 import numpy as np
 
 from hwid.blocks import backlash as bl
-from hwid.blocks.linear import LinearBlock
+from hwid.blocks.chain import run_chain
+from hwid.blocks.linear import LinearBlock, discretise
 from hwid.blocks.static import PiecewiseH, PolynomialH
 
 #: A gear state below every border: from it, a staircase's first lead-in level puts a Backlash on
@@ -132,9 +133,37 @@ class HWModel:
         G from rest at the input level ``rest`` (None: the equilibrium of ``v[0]``), ``x = h(w)``.
         Every simulation of a model in hwid runs here."""
         u = np.ascontiguousarray(u, dtype=float)
+        fused = self._fused(u, dt, gear, rest)
+        if fused is not None:
+            return fused
         v = self.input.apply(u, gear)
         w = self.linear.simulate(v, dt, rest)
         return Signals(v, w, self.output(w), float(v[-1]) if v.size else gear)
+
+    def _fused(self, u, dt: float, gear: float | None, rest: float | None) -> Signals | None:
+        """The chain in one pass (:func:`hwid.blocks.chain.run_chain`, bit-identical to the three
+        passes) where it applies: no delay, a polynomial h, a G with states; else None."""
+        f, g = self.input, self.linear
+        if u.size == 0 or g.delay != 0.0 or not isinstance(self.output, PolynomialH):
+            return None
+        n_states, _, _, Phi, G1, G0, C, D = discretise(tuple(map(float, g.num)), tuple(map(float, g.den)), 0.0,
+                                                       float(dt))
+        if n_states == 0:
+            return None
+        p = (f.slope_up, f.slope_down, f.d_plus, f.d_minus)
+        if f.type == "backlash":
+            start = bl.backlash_start(u, *p) if gear is None else float(gear)
+            v0 = min(max(start, p[0] * (u[0] - p[2])), p[1] * (u[0] - p[3]))
+            args = (False, p[0], p[2], p[1], p[3], start)
+        else:
+            start = bl.backlash_inverse_start(u, *p) if gear is None else float(gear)
+            v0 = start
+            args = (True, 1.0 / p[0], p[2], 1.0 / p[1], p[3], start)
+        level = v0 if rest is None else float(rest)
+        x0 = np.linalg.solve(np.eye(n_states) - Phi, (G1 + G0) * level)
+        coef = np.ascontiguousarray(self.output.coefficients, dtype=float)
+        v, w, x = run_chain(u, *args, Phi, G1, G0, C, D, x0, coef)
+        return Signals(v, w, x, float(v[-1]))
 
     def staircase_steady(self, lead_in, levels) -> np.ndarray:
         """``X_j = h(G(0) F[U_j])`` at each level of a staircase after its lead-in (eqs. 5, 8a-b)."""

@@ -63,7 +63,8 @@ def noise(rng: np.random.Generator, n: int, std: float, ar: float = 0.0) -> np.n
         return np.zeros(n)
     e = rng.standard_normal(n)
     if ar == 0.0:
-        return std * e
+        e *= std            # in place: a long experiment's noise is not allocated twice
+        return e
     from scipy import signal   # imported here: scipy.signal costs seconds at start-up
     b = [std * np.sqrt(1 - ar * ar)]
     zi = np.array([ar * std * rng.standard_normal()])  # stationary start
@@ -90,7 +91,8 @@ class SimulatedPlant:
         sig = self.model.simulate(u, self.dt, self.state)
         self.state = sig.gear
         v, w, x = sig.v, sig.w, sig.x
-        y = x + noise(experiment_rng(self.seed_seq, name), u.size, self.noise_std, self.noise_ar)
+        y = noise(experiment_rng(self.seed_seq, name), u.size, self.noise_std, self.noise_ar)
+        y += x              # in place; the same sum as x + noise
         self.calls += 1
         if not np.all(np.isfinite(y)):
             raise HwidError(f"simulating experiment '{name}' gave NaN or inf (first at sample "

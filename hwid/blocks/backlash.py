@@ -79,9 +79,19 @@ def backlash(u, slope_up: float, slope_down: float, d_plus: float, d_minus: floa
     _check(slope_up, slope_down, d_plus, d_minus)
     u = np.ascontiguousarray(u, dtype=float)
     if v0 is None:
-        v0 = 0.0 if u.size == 0 else float(np.clip(0.0, slope_up * (u[0] - d_plus),
-                                                   slope_down * (u[0] - d_minus)))
+        v0 = backlash_start(u, slope_up, slope_down, d_plus, d_minus)
     return _play(u, float(slope_up), float(slope_down), float(d_plus), float(d_minus), float(v0))
+
+
+def backlash_start(u, slope_up: float, slope_down: float, d_plus: float, d_minus: float) -> float:
+    """The Backlash's default gear position before ``u[0]``: 0 clipped into the band between the
+    borders at ``u[0]``."""
+    return 0.0 if len(u) == 0 else float(np.clip(0.0, slope_up * (u[0] - d_plus), slope_down * (u[0] - d_minus)))
+
+
+def backlash_inverse_start(z, slope_up: float, slope_down: float, d_plus: float, d_minus: float) -> float:
+    """The Backlash-Inverse's default output at ``z[0]``: the midpoint of its two branches there."""
+    return 0.0 if len(z) == 0 else 0.5 * (z[0] / slope_up + d_plus + z[0] / slope_down + d_minus)
 
 
 def backlash_inverse(z, slope_up: float, slope_down: float, d_plus: float, d_minus: float,
@@ -99,7 +109,7 @@ def backlash_inverse(z, slope_up: float, slope_down: float, d_plus: float, d_min
     _check(slope_up, slope_down, d_plus, d_minus)
     z = np.ascontiguousarray(z, dtype=float)
     if u0 is None:
-        u0 = 0.0 if z.size == 0 else 0.5 * (z[0] / slope_up + d_plus + z[0] / slope_down + d_minus)
+        u0 = backlash_inverse_start(z, slope_up, slope_down, d_plus, d_minus)
     return _direction_map(z, 1.0 / slope_up, float(d_plus), 1.0 / slope_down, float(d_minus), float(u0))
 
 
