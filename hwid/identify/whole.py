@@ -250,7 +250,7 @@ class WholeModelFit:
                     prob = _Problem(records, kind, structure, degree, self.delay)
                     lo, hi = prob.bounds(width, span, dt)
                     sol = optimize.least_squares(prob.residual, np.clip(theta0, lo + 1e-9, hi - 1e-9),
-                                                 bounds=(lo, hi), method="trf", x_scale="jac",
+                                                 bounds=(lo, hi), method="trf", x_scale=1.0,
                                                  max_nfev=self.max_nfev)
                     rss = float(sol.fun @ sol.fun)
                     n, k = prob.y.size, prob.n_outer + degree
