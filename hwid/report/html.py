@@ -688,7 +688,7 @@ def build_figures(run: RunData) -> list[FigureItem]:
                                         "known), and the coverage of the 95 % intervals, against the swept key.",
                                         F.plot_batch_summary(run.batch, sel), "batch"))
     if run.diagnosis is not None:
-        from hwid.diagnose.figures import plot_ranking, plot_residual_map
+        from hwid.report.figures import plot_ranking, plot_residual_map
         items.append(FigureItem("diagnosis_residual_map", "diagnosis",
                                 "Residual map of the validation experiments: local RMS gap over the noise floor, "
                                 "before (left) and after (right) adding the verdict's effect.",
