@@ -274,33 +274,6 @@ def plot_borders(estimate=None, truth=None, u_range=(-1.5, 1.5), ci: Mapping[str
 
 # -------------------------------------------------------------------- sines (Figs. 15, 16)
 
-def fold_period(y, dt: float, omega: float, start: int = 0, bins: int | None = None):
-    """Period average ``x_hat_N(t)`` of eq. (23a) for any ``T/dt``: samples from ``start`` on are
-    binned by their phase ``(t mod T)/T`` into ``bins`` bins (default ``round(T/dt)``, at most 2000).
-
-    Returns ``(t_bin, mean, count)`` with ``t_bin`` the bin centres in ``[0, T)``."""
-    y = np.asarray(y, float)[start:]
-    T = 2 * np.pi / omega
-    bins = int(bins or min(max(round(T / dt), 8), 2000))
-    t = (np.arange(y.size) + start) * dt
-    k = np.minimum((np.mod(t, T) / T * bins).astype(int), bins - 1)
-    ok = np.isfinite(y)                      # ground truth may be stored for the last periods only
-    k, y = k[ok], y[ok]
-    cnt = np.bincount(k, minlength=bins)
-    s = np.bincount(k, weights=y, minlength=bins)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        m = s / cnt
-    return (np.arange(bins) + 0.5) * T / bins, m, cnt
-
-
-def harmonic_series(t, omega: float, coef, dc: float = 0.0, ks=None):
-    """``dc + sum_k Im(C_k e^{j k omega t})`` = ``dc + sum_k s_k sin(k omega t + psi_k)`` (eq. 21)."""
-    coef = np.asarray(coef, complex)
-    ks = np.arange(1, coef.size + 1) if ks is None else np.asarray(ks)
-    t = np.asarray(t, float)
-    return dc + np.imag(np.exp(1j * omega * np.outer(t, ks)) @ coef)
-
-
 def plot_period(t, x_hat, omega: float, model=None, truth=None, raw=None, title: str | None = None,
                 ax=None) -> Figure:
     """One period of the averaged output ``x_hat_N(t)`` (eq. 23a, Fig. 15b) with the fitted harmonic
