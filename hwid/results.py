@@ -213,17 +213,24 @@ def read_padded(ds, n: int) -> np.ndarray:
     return data
 
 
-def read_records(group: h5py.Group) -> dict:
-    """Inverse of :func:`write_records`; a damaged group raises :class:`ResultsError`."""
+def read_records(group: h5py.Group, keys=("u", "y", "v", "w", "x", "z"), names=None) -> dict:
+    """Inverse of :func:`write_records`; a damaged group raises :class:`ResultsError`.
+
+    ``keys`` (which must hold ``y``) limits the datasets read, the others are None; ``names``
+    limits the experiments read (default: all). Readers of a few signals of long records (the
+    report) use them; ``u`` is checked against ``y`` when it is read."""
     out = {}
     where = f"{group.file.filename}:{group.name}"
     try:
         for name, g in group.items():
+            if names is not None and name not in names:
+                continue
             where = f"{group.file.filename}:{g.name}"
-            kw = {k: (read_padded(g[k], int(g.attrs.get("n", 0))) if k in g else None) for k in ("u", "y", "v", "w", "x", "z")}
+            kw = {k: (read_padded(g[k], int(g.attrs.get("n", 0))) if k in keys and k in g else None)
+                  for k in ("u", "y", "v", "w", "x", "z")}
             attrs = {k: v for k, v in g.attrs.items() if k not in ("dt", "n")}
             r = out[name] = Record(name, float(g.attrs["dt"]), attrs=attrs, **kw)
-            if r.u is None or r.y is None or r.u.ndim != 1 or r.u.shape != r.y.shape:
+            if r.y is None or r.y.ndim != 1 or ("u" in keys and (r.u is None or r.u.shape != r.y.shape)):
                 raise ResultsError(f"{where}: experiment without matching one-dimensional 'u' and 'y' datasets")
             if not (math.isfinite(r.dt) and r.dt > 0):
                 raise ResultsError(f"{where}: sample time dt = {r.dt} is not a positive number")

@@ -16,8 +16,7 @@ from matplotlib.figure import Figure
 from hwid import HwidError, config
 from hwid.blocks.linear import LinearBlock
 from hwid.cli import main
-from hwid.report import figures as F
-from hwid.report import html as H
+from hwid.report import figures, html, rundir, views
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -81,7 +80,7 @@ def test_plot_h_truth_band_and_points():
     A = rng.normal(size=(6, 6)) * 0.01
     cov = A @ A.T
     pts = {"up": (np.array([-0.3, 0.1, 0.5]), np.array([-0.07, 0.05, 0.03]), np.array([0.01, 0.01, 0.01]))}
-    fig = F.plot_h(coef, cov, (-0.9, 0.7), H_BAR, pts)
+    fig = figures.plot_h(coef, cov, (-0.9, 0.7), H_BAR, pts)
     assert isinstance(fig, Figure)
     ax = fig.axes[0]
     t = _line(ax, "truth")
@@ -107,9 +106,9 @@ def test_plot_h_truth_band_and_points():
 def test_plot_h_into_given_axes_returns_its_figure():
     fig = Figure()
     ax = fig.add_subplot()
-    assert F.plot_h([0, 1.0], ax=ax) is fig
+    assert figures.plot_h([0, 1.0], ax=ax) is fig
     with pytest.raises(ValueError, match="needs 2 axes"):
-        F.plot_bode([1.0], [1.0], [0.1], ax=ax)
+        figures.plot_bode([1.0], [1.0], [0.1], ax=ax)
 
 
 def test_plot_bode_truth_is_G_and_estimates_with_bars():
@@ -117,7 +116,7 @@ def test_plot_bode_truth_is_G_and_estimates_with_bars():
     G = G_BAR.freqresp(om) / G_BAR.dc_gain
     gain, phase = np.abs(G) * 1.01, -np.angle(G) + 0.01
     gci = np.c_[gain - 0.02, gain + 0.03]
-    fig = F.plot_bode(om, gain, phase, (gci[:, 0], gci[:, 1]), None,
+    fig = figures.plot_bode(om, gain, phase, (gci[:, 0], gci[:, 1]), None,
                       parametric=LinearBlock((0.11,), (1.0, 0.7, 0.11)), truth=LinearBlock((1.0,), (10.0, 7.0, 1.0)))
     ag, ap = fig.axes
     t = _line(ag, "truth")
@@ -141,7 +140,7 @@ def test_plot_borders_truth_and_estimate():
     from hwid.model import InputNonlinearity
     tr = InputNonlinearity("backlash", 1.0, 1.0, 0.5, -0.5)
     est = InputNonlinearity("backlash", 1.0, 1.02, 0.51, -0.49)
-    fig = F.plot_borders(est, tr, (-1.5, 1.5), {"d_plus": (0.5, 0.52), "d_minus": (-0.5, -0.48)})
+    fig = figures.plot_borders(est, tr, (-1.5, 1.5), {"d_plus": (0.5, 0.52), "d_minus": (-0.5, -0.48)})
     ax = fig.axes[0]
     u = _line(ax, "truth_ascending").get_xdata()
     np.testing.assert_allclose(_line(ax, "truth_ascending").get_ydata(), u - 0.5)
@@ -157,7 +156,7 @@ def test_plot_staircase_output_marks_windows_and_X_hat():
     y = np.repeat([0.1, 0.2, 0.3, 0.4], 100)
     win = [(25.0, 50.0), (75.0, 100.0), (125.0, 150.0), (175.0, 200.0)]
     X = np.array([0.1, 0.2, 0.3, 0.4]) + 0.001
-    fig = F.plot_staircase_output(t, y, win, X, np.full(4, 0.01), x_true=y, flat=1)
+    fig = figures.plot_staircase_output(t, y, win, X, np.full(4, 0.01), x_true=y, flat=1)
     ax = fig.axes[0]
     hl = [c for c in ax.collections if c.get_gid() == "X_hat"][0]
     segs = hl.get_segments()
@@ -170,7 +169,7 @@ def test_plot_staircase_output_marks_windows_and_X_hat():
 def test_decimate_keeps_envelope():
     t = np.arange(100_000) * 0.01
     y = np.sin(t) + (np.arange(t.size) == 54_321) * 5.0
-    tt, yy = F.decimate_envelope(t, y, 2000)
+    tt, yy = figures.decimate_envelope(t, y, 2000)
     assert yy.size <= 2000 and yy.max() == y.max() and yy.min() == y.min()
     assert np.all(np.diff(tt) >= 0)
 
@@ -179,12 +178,12 @@ def test_ls_harmonics_exact_at_non_integer_samples_per_period():
     dt, omega = 0.05, 0.3       # T/dt = 418.88...
     t = np.arange(int(10 * 2 * np.pi / omega / dt)) * dt
     C = np.array([0.8 - 0.3j, 0.0, 0.2 + 0.1j, 0, 0.05j])
-    x = 0.1 + F.harmonic_series(t, omega, C)
-    c, dc, se = H.ls_harmonics(x, dt, omega, 100, 5)
+    x = 0.1 + views.harmonic_series(t, omega, C)
+    c, dc, se = views.ls_harmonics(x, dt, omega, 100, 5)
     np.testing.assert_allclose(c, C, atol=1e-10)
     assert dc == pytest.approx(0.1, abs=1e-10)
     noisy = x + np.random.default_rng(1).normal(0, 0.1, x.size)
-    c, dc, se = H.ls_harmonics(noisy, dt, omega, 0, 5)
+    c, dc, se = views.ls_harmonics(noisy, dt, omega, 0, 5)
     n = x.size
     np.testing.assert_allclose(se, 0.1 * np.sqrt(2 / n), rtol=0.1)   # white-noise SE of Re, Im C_k
     assert np.all(np.abs(c - C) < 5 * se)
@@ -193,7 +192,7 @@ def test_ls_harmonics_exact_at_non_integer_samples_per_period():
 def test_plot_spectrum_bars_are_moduli():
     ks = np.arange(1, 6)
     C = np.array([0.8 - 0.3j, 1e-4, 0.2 + 0.1j, 1e-4, 0.05j])
-    fig = F.plot_spectrum(ks, C, np.full(5, 1e-3), model=C * 1.01, truth=C)
+    fig = figures.plot_spectrum(ks, C, np.full(5, 1e-3), model=C * 1.01, truth=C)
     am, ap = fig.axes
     bars = [p for p in am.patches]
     np.testing.assert_allclose([b.get_height() for b in bars], np.abs(C))
@@ -214,7 +213,7 @@ SUMMARY = {"sweep_keys": ["plant.noise.std"], "points": [
 
 
 def test_plot_batch_summary_synthetic():
-    fig = F.plot_batch_summary(SUMMARY)
+    fig = figures.plot_batch_summary(SUMMARY)
     ar, ac = fig.axes
     r = _line(ar, "rmse:d_plus")
     np.testing.assert_allclose(r.get_xdata(), [0.001, 0.01, 0.1])          # sorted by the swept key
@@ -246,9 +245,9 @@ def test_full_report_files_and_figures(full_run):
 
 def test_full_report_figures_hold_truth_and_estimates(full_run):
     from hwid.results import read_linear, read_nonlinear
-    run = H.load_run(full_run)
+    run = rundir.load_run(full_run)
     nl, lin = read_nonlinear(full_run / "nonlinear.h5"), read_linear(full_run / "linear.h5")
-    figs = {i.name: i.figure for i in H.build_figures(run)}
+    figs = {i.name: i.figure for i in html.build_figures(run)}
     # Fig. 12: the truth is h_bar of eq. (30c) on the plotted grid, the estimate is stage 1's h
     ax = figs["h"].axes[0]
     w, ht = _line(ax, "truth").get_data()
@@ -391,8 +390,8 @@ def test_simulation_only(tmp_path, capsys, tmp_path_factory):
     cells = _rows(page, "data-j", 7)
     assert _nums(cells[1]) == [0.6] and cells[2] == "—" and _nums(cells[3])[0] == pytest.approx(0.0467, abs=1e-3)
     # the spectra are measured from the data (harmonic LS) when stage 2 is absent: x(t) is odd in w
-    run = H.load_run(tmp_path)
-    s = H.sine_views(run)[0]
+    run = rundir.load_run(tmp_path)
+    s = views.sine_views(run)[0]
     assert s.model is None
     np.testing.assert_allclose(np.abs(s.truth_coef[1::2]), 0, atol=1e-6)     # even harmonics of the truth
     assert np.all(np.abs(s.coef[[0, 2, 4]] - s.truth_coef[[0, 2, 4]]) < 5 * s.se[[0, 2, 4]])
@@ -401,7 +400,7 @@ def test_simulation_only(tmp_path, capsys, tmp_path_factory):
 def test_without_linear(full_run, tmp_path):
     for n in ("simulation.h5", "nonlinear.h5"):
         shutil.copy(full_run / n, tmp_path / n)
-    path = H.write_report(tmp_path)
+    path = html.write_report(tmp_path)
     page = path.read_text()
     names = [f["name"] for f in json.loads((tmp_path / "report" / "figures.json").read_text())]
     assert names == STAIR_FIGS + ["h", "borders"]      # the pipeline stores the sines in linear.h5
@@ -436,7 +435,7 @@ def test_bad_directories_one_line_exit_2(case, full_run, tmp_path, capsys, tmp_p
             "foreign": "not a readable HDF5", "wrong_kind": "expected 'linear'",
             "other_config": "different config"}[case] in err
     with pytest.raises(HwidError):
-        H.load_run(d)
+        rundir.load_run(d)
 
 
 # --------------------------------------------------------------------------------- batches
@@ -463,27 +462,27 @@ def test_batch_directory(tmp_path, tmp_path_factory):
     cfg = _cfg(tmp_path_factory, FAST, "fast.yaml")
     with cf.ThreadPoolExecutor(1) as ex:      # in-process: no worker start-up in a unit test
         run_batch(cfg, 1, tmp_path, [("plant.noise.std", [0.01, 0.03])], executor=ex, progress=False)
-    path = H.write_report(tmp_path)
+    path = html.write_report(tmp_path)
     page = path.read_text()
     names = [f["name"] for f in json.loads((tmp_path / "report" / "figures.json").read_text())]
     assert names == ["batch_nonlinear"]                          # no sines: no stage 2 estimates
     assert "id='batch'" in page and "Monte Carlo" in page
     assert "is missing" not in page                               # a batch directory has no stage files
     summ = read_batch_summary(tmp_path / "batch.h5")
-    run = H.load_run(tmp_path)
-    fig = [i.figure for i in H.build_figures(run) if i.name == "batch_nonlinear"][0]
+    run = rundir.load_run(tmp_path)
+    fig = [i.figure for i in html.build_figures(run) if i.name == "batch_nonlinear"][0]
     r = _line(fig.axes[0], "rmse:d_plus")
     np.testing.assert_allclose(r.get_xdata(), [0.01, 0.03])
     np.testing.assert_allclose(r.get_ydata(), [p["stats"]["d_plus"]["rmse"] / 0.4 for p in summ["points"]])
 
 
 def test_batch_figures_split_by_stage():
-    run = H.RunData(Path("."), {n: n == "batch.h5" for n in H.FILES}, {}, batch=SUMMARY)
-    items = H.build_figures(run)
+    run = rundir.RunData(Path("."), {n: n == "batch.h5" for n in rundir.FILES}, {}, batch=SUMMARY)
+    items = html.build_figures(run)
     assert [i.name for i in items] == ["batch_nonlinear", "batch_linear"]
     lin = items[1].figure.axes[0]
     assert [l.get_gid() for l in lin.get_lines()] == ["rmse:gain@0.1", "crlb:gain@0.1"]
-    page = H.render_html(run, items, {i.name: b"png" for i in items})
+    page = html.render_html(run, items, {i.name: b"png" for i in items})
     cells = _rows(page.replace("<tr><td>2</td>", "<tr data-x='p2'><td>2</td>", 1), "data-x", "p2")
     assert cells[3] == "d_plus" and _nums(cells[7]) == [0.02] and _nums(cells[8]) == [0.95]
 
@@ -494,7 +493,7 @@ def test_diagnosis_section_holds_the_json_numbers(tmp_path):
     residual map and ranking figures."""
     import yaml
     from hwid.diagnose import diagnose
-    import diagnose_rigs as R
+    import diagnose_rigs
     lv = [-1.0, -0.5, 0.0, 0.5, 1.0]
     cfg_p = tmp_path / "lag.yaml"
     cfg_p.write_text(yaml.safe_dump({
@@ -503,11 +502,11 @@ def test_diagnosis_section_holds_the_json_numbers(tmp_path):
         "protocols": {"staircase": {"levels_up": lv, "levels_down": lv[::-1], "hold": 6.0},
                       "sine": {"amplitude": 0.6, "frequencies": [0.5, 1.0], "periods": 2}}}))
     model_p = tmp_path / "base.yaml"
-    model_p.write_text(yaml.safe_dump({"plant": R.BASE}))
+    model_p.write_text(yaml.safe_dump({"plant": diagnose_rigs.BASE}))
     out = tmp_path / "out"
     s = diagnose(config.load(cfg_p), out, model=model_p, echo=lambda *a: None)
     js = json.loads((out / "diagnosis.json").read_text())
-    path = H.write_report(out)
+    path = html.write_report(out)
     page = path.read_text()
     names = [f["name"] for f in json.loads((out / "report" / "figures.json").read_text())]
     assert names == ["diagnosis_residual_map", "diagnosis_ranking"]

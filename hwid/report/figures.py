@@ -1,7 +1,8 @@
-"""The report's figures (paper Figs. 9-16), one function per figure, each on plain data.
+"""The report's figures (paper Figs. 9-16, Bode, batch summaries, the diagnosis), one function per
+figure, each on plain data.
 
 Every function takes ``ax=None`` (or a pair of axes for two-panel figures), draws, and returns the
-:class:`matplotlib.figure.Figure`; none calls ``plt.show()``. Figures are created with
+:class:`matplotlib.figure.Figure`; none shows it. Figures are created with
 :class:`matplotlib.figure.Figure` directly, not through ``pyplot``, so there is no global figure
 state and saving uses the Agg (PNG) and SVG canvases whatever the session's backend.
 
@@ -13,6 +14,7 @@ from __future__ import annotations
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
+from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
@@ -272,33 +274,6 @@ def plot_borders(estimate=None, truth=None, u_range=(-1.5, 1.5), ci: Mapping[str
 
 # -------------------------------------------------------------------- sines (Figs. 15, 16)
 
-def fold_period(y, dt: float, omega: float, start: int = 0, bins: int | None = None):
-    """Period average ``x_hat_N(t)`` of eq. (23a) for any ``T/dt``: samples from ``start`` on are
-    binned by their phase ``(t mod T)/T`` into ``bins`` bins (default ``round(T/dt)``, at most 2000).
-
-    Returns ``(t_bin, mean, count)`` with ``t_bin`` the bin centres in ``[0, T)``."""
-    y = np.asarray(y, float)[start:]
-    T = 2 * np.pi / omega
-    bins = int(bins or min(max(round(T / dt), 8), 2000))
-    t = (np.arange(y.size) + start) * dt
-    k = np.minimum((np.mod(t, T) / T * bins).astype(int), bins - 1)
-    ok = np.isfinite(y)                      # ground truth may be stored for the last periods only
-    k, y = k[ok], y[ok]
-    cnt = np.bincount(k, minlength=bins)
-    s = np.bincount(k, weights=y, minlength=bins)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        m = s / cnt
-    return (np.arange(bins) + 0.5) * T / bins, m, cnt
-
-
-def harmonic_series(t, omega: float, coef, dc: float = 0.0, ks=None):
-    """``dc + sum_k Im(C_k e^{j k omega t})`` = ``dc + sum_k s_k sin(k omega t + psi_k)`` (eq. 21)."""
-    coef = np.asarray(coef, complex)
-    ks = np.arange(1, coef.size + 1) if ks is None else np.asarray(ks)
-    t = np.asarray(t, float)
-    return dc + np.imag(np.exp(1j * omega * np.outer(t, ks)) @ coef)
-
-
 def plot_period(t, x_hat, omega: float, model=None, truth=None, raw=None, title: str | None = None,
                 ax=None) -> Figure:
     """One period of the averaged output ``x_hat_N(t)`` (eq. 23a, Fig. 15b) with the fitted harmonic
@@ -535,4 +510,81 @@ def plot_batch_summary(summary: Mapping, names: Sequence[str] | None = None, ax=
     if ticklabels is not None:
         ac.set_xticks(x)
         ac.set_xticklabels(ticklabels, rotation=20, fontsize=7, ha="right")
+    return fig
+
+
+# ------------------------------------------------------------------------------------- diagnosis
+
+def _validation(diagnosis: Mapping):
+    """The validation experiments the verdict's effect was scored on, ``(name, experiment)``."""
+    return [(n, e) for n, e in diagnosis["experiments"].items() if e["role"] == "validation" and "y_after" in e]
+
+
+def plot_residual_map(diagnosis: Mapping, ax=None) -> Figure:
+    """The residual map before and after: for every validation experiment (rows), the local RMS
+    of the residual over windows of its scored samples, in units of the noise floor (colour).
+    Left: the model as given; right: with the verdict's effect added.
+
+    Parameters
+    ----------
+    diagnosis : dict
+        :func:`hwid.results.read_diagnosis` output.
+    ax : pair of Axes, optional
+    """
+    summary = diagnosis["summary"]
+    sigma = max(float(summary["noise_floor"]), 1e-300)
+    rows = _validation(diagnosis)
+    n_bins = 60
+    maps = []
+    for _, e in rows:
+        scored = e["mask"]
+        per_model = []
+        for key in ("y_model", "y_after"):
+            r = (e["y"] - e[key])[scored] / sigma
+            edges = np.linspace(0, r.size, n_bins + 1).astype(int)
+            per_model.append([np.sqrt(np.mean(r[a:b] ** 2)) if b > a else np.nan
+                              for a, b in zip(edges[:-1], edges[1:])])
+        maps.append(per_model)
+    maps = np.asarray(maps, float) if maps else np.ones((1, 2, n_bins))
+    if ax is None:
+        fig = Figure(figsize=(11, 0.3 * len(rows) + 2), layout="constrained")
+        ax = fig.subplots(1, 2, sharey=True)
+    else:
+        fig = ax[0].figure
+    norm = LogNorm(vmin=0.5, vmax=max(np.nanmax(maps), 2.0))
+    image = None
+    for k, title in enumerate(("before: model as given", f"after: + {summary['verdict']['effect']}")):
+        image = ax[k].imshow(np.clip(maps[:, k, :], 0.5, None), aspect="auto", cmap="magma", norm=norm,
+                             extent=(0, 1, len(rows) - 0.5, -0.5), interpolation="nearest")
+        ax[k].set_title(title)
+        ax[k].set_xlabel("fraction of the scored experiment")
+    ax[0].set_yticks(range(len(rows)))
+    ax[0].set_yticklabels([n for n, _ in rows], fontsize=7)
+    fig.colorbar(image, ax=list(ax), label="local RMS gap / noise floor")
+    fig.suptitle(f"gap {summary['gap_before']:.3g} -> {summary['gap_after']:.3g} "
+                 f"(noise floor {summary['noise_floor']:.3g})")
+    return fig
+
+
+def plot_ranking(diagnosis: Mapping, ax=None) -> Figure:
+    """Explained fraction of the excess gap per catalogue effect (bars), the verdict highlighted,
+    the 0.5 threshold of a verdict dashed; candidates whose BIC score is not positive are hatched."""
+    summary = diagnosis["summary"]
+    candidates = summary["candidates"]
+    if ax is None:
+        fig = Figure(figsize=(7, 0.35 * len(candidates) + 1.5), layout="constrained")
+        ax = fig.subplots()
+    else:
+        fig = ax.figure
+    names = [c["effect"] for c in candidates][::-1]
+    fractions = [c["explained_fraction"] for c in candidates][::-1]
+    verdict = summary["verdict"]["effect"]
+    bars = ax.barh(names, fractions, color=["tab:red" if n == verdict else "tab:gray" for n in names])
+    for bar, c in zip(bars, candidates[::-1]):
+        if c["score"] <= 0:
+            bar.set_hatch("//")
+    ax.axvline(0.5, ls="--", color="k", lw=0.8)
+    ax.set_xlim(0, 1.05)
+    ax.set_xlabel("explained fraction of the gap above the noise floor (validation data)")
+    ax.set_title(f"verdict: {verdict} ({summary['verdict']['block']})")
     return fig
