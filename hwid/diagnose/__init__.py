@@ -27,7 +27,7 @@ import numpy as np
 
 from hwid import HwidError
 from hwid.diagnose.effects import BLOCK, CATALOGUE, ModelSim, Scale, catalogue
-from hwid.diagnose.figures import plot_ranking, plot_residual_map
+from hwid.report.figures import plot_ranking, plot_residual_map
 from hwid.results import write_diagnosis
 
 __all__ = ["diagnose", "load_model", "plot_residual_map", "plot_ranking", "CATALOGUE",
