@@ -4,7 +4,8 @@ pre-compensator, the report.
 One plant object serves every experiment, as on a rig: the simulated gear keeps its state, and an
 external rig's calls are journalled in ``OUT/rig_journal`` so a rerun after a failure reuses them.
 Writes ``OUT/simulation.h5`` (the staircases as measured, and the truth when the plant is
-simulated), ``OUT/nonlinear.h5``, ``OUT/linear.h5`` and ``OUT/report/``.
+simulated), ``OUT/nonlinear.h5``, ``OUT/linear.h5``, ``OUT/whole.h5`` (the whole-model fit, with
+``identification.whole.enabled``) and ``OUT/report/``.
 """
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import time
 from pathlib import Path
 
 from hwid.plant import make_plant
-from hwid.results import write_linear, write_nonlinear, write_simulation
+from hwid.results import write_linear, write_nonlinear, write_simulation, write_whole
 
 
 def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
@@ -46,6 +47,22 @@ def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
         times["stage2"] = time.perf_counter() - t0
         echo(f"stage 2: G(jw) at {len(lin.frequencies)} frequencies ({times['stage2']:.1f} s)")
         for w in lin.warnings:
+            echo(f"warning: {w}")
+
+    if cfg.identification.whole.enabled:
+        from hwid.identify.result import model_from_stages
+        from hwid.identify.whole import WholeModelFit, fit_records
+        t0 = time.perf_counter()
+        start = model_from_stages(nl, lin) if cfg.protocols.sine is not None else None
+        fit = WholeModelFit.from_config(cfg).fit(fit_records(list(nl_records) + list(lin_records if start else [])),
+                                                 start=start)
+        paths["whole"] = write_whole(out / "whole.h5", cfg, fit.result_)
+        times["whole"] = time.perf_counter() - t0
+        res = fit.result_
+        echo(f"whole model: {res.type}, d+ = {res.d_plus:.4f}, S^d = {res.slope_down:.4f}, d- = {res.d_minus:.4f}, "
+             f"h degree {len(res.h_coefficients) - 1}, G {res.structure}, sigma {res.sigma:.4g} "
+             f"({times['whole']:.1f} s)")
+        for w in res.warnings:
             echo(f"warning: {w}")
 
     if report:

@@ -80,3 +80,28 @@ def test_whole_result_round_trips_through_whole_h5(tmp_path):
     path = write_whole(tmp_path / "whole.h5", cfg, fit.result_)
     back = read_whole(path, cfg)
     assert back == fit.result_
+
+
+def test_run_with_whole_enabled_is_not_worse_than_the_stages(tmp_path):
+    """``hwid run`` with identification.whole.enabled: the whole fit starts from the stages, its
+    estimates hold the truth, and its free-run error on the stages' records is no larger than the
+    stages' own model's."""
+    from hwid.identify.result import model_from_stages
+    from hwid.identify.whole import fit_records
+    from hwid.pipeline import run
+    from hwid.results import read_experiments, read_linear, read_nonlinear, read_whole
+    poly = [0, 1.0, 0.8, -0.6]
+    cfg = config.load(rigs.write(tmp_path / "w.yaml", rigs.small(**{"identification.whole.enabled": True,
+                                                                      "plant.output_nonlinearity.polynomial": poly})))
+    run(cfg, tmp_path / "run", report=False, echo=lambda *_: None)
+    whole = read_whole(tmp_path / "run" / "whole.h5", cfg)
+    norm = from_config(cfg.plant).normalised()
+    for name in ("d_plus", "d_minus", "slope_down"):
+        assert _inside(getattr(whole, name), whole.ci[name], getattr(norm.input, name)), name
+    stages = model_from_stages(read_nonlinear(tmp_path / "run" / "nonlinear.h5"), read_linear(tmp_path / "run" / "linear.h5"))
+    records = fit_records(list(read_experiments(tmp_path / "run" / "nonlinear.h5", "nonlinear").values())
+                          + list(read_experiments(tmp_path / "run" / "linear.h5", "linear").values()))
+    by_whole, _ = compare_records(whole.model(), records, noise_floor=0.01)
+    by_stages, _ = compare_records(stages, records, noise_floor=0.01)
+    assert by_whole.rms <= by_stages.rms * 1.001
+    assert by_whole.rms_over_floor < 1.05

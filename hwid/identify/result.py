@@ -204,3 +204,43 @@ class WholeResult:
                    tuple(d["h_coefficients"]), tuple(d["num"]), tuple(d["den"]), float(d["delay"]),
                    str(d["structure"]), ci, float(d["sigma"]), float(d["rms"]), int(d["samples"]),
                    dict(d["initial_states"]), tuple(d["selection"]), tuple(d.get("warnings", ())))
+
+
+def first_order_fallback(lin: LinearResult) -> tuple[list, list]:
+    """``G(s) = 1/(tau s + 1)`` fitted to the stage 2 estimates ``G_hat(j omega_i)`` (relative
+    least squares over ``log tau``): a stable G when stage 2 found no parametric model."""
+    from scipy.optimize import minimize_scalar
+    w = np.asarray(lin.frequencies, float)
+    G = np.asarray(lin.gain, float) * np.exp(-1j * np.asarray(lin.phase, float))
+    ok = np.isfinite(G) & (np.abs(G) > 0) & (w > 0)
+    if not np.any(ok):
+        from hwid import HwidError
+        raise HwidError("the stage 2 result has no finite frequency response; no G(s) can be built from it")
+    w, G = w[ok], G[ok]
+
+    def cost(lt):
+        return float(np.sum(np.abs(1.0 / (1.0 + 1j * w * np.exp(lt)) / G - 1.0) ** 2))
+    lo, hi = np.log(0.01 / w.max()), np.log(100.0 / w.min())
+    tau = float(np.exp(minimize_scalar(cost, bounds=(lo, hi), method="bounded").x))
+    return [1.0], [tau, 1.0]
+
+
+def model_from_stages(nl: NonlinearResult, lin: LinearResult, notes: list | None = None) -> HWModel:
+    """The normalised HW model of a stage 1 result and a stage 2 result: F and h_bar from stage 1,
+    stage 2's parametric G (when stage 2 found none, a first-order G fitted to its estimates, said
+    in ``notes``)."""
+    par = dict(lin.parametric or {})
+    num = np.atleast_1d(np.asarray(par.get("num", []), float))
+    den = np.atleast_1d(np.asarray(par.get("den", []), float))
+    if num.size == 0 or den.size == 0 or not np.all(np.isfinite(num)) or not np.all(np.isfinite(den)):
+        n1, d1 = first_order_fallback(lin)
+        num, den = np.asarray(n1), np.asarray(d1)
+        why, par = par.get("error", "no num/den"), {"delay": 0.0}
+        if notes is not None:
+            notes.append(f"stage 2 found no parametric G(s) ({why}); the model "
+                         f"uses G(s) = 1/({den[0]:.4g} s + 1) fitted to the estimates G(j omega)")
+    num = np.trim_zeros(num, "f")
+    den = np.trim_zeros(den, "f")
+    return HWModel(nl.input_nonlinearity(), LinearBlock(tuple(num.tolist()), tuple(den.tolist()),
+                                                        float(par.get("delay", 0.0) or 0.0)),
+                   PolynomialH(tuple(float(c) for c in np.asarray(nl.h_coefficients, float))))

@@ -76,6 +76,17 @@ def g_from_params(structure: Structure, p: Sequence[float], delay: float = 0.0) 
     return LinearBlock(tuple(num.tolist()), tuple(den.tolist()), float(delay))
 
 
+def structure_of(g: LinearBlock) -> Structure | None:
+    """The :class:`Structure` of a stable ``g`` with real zeros (None when it has none of ours)."""
+    poles = np.roots(g.den)
+    zeros = np.roots(np.trim_zeros(np.asarray(g.num, float), "f"))
+    if np.any(poles.real >= 0) or np.any(np.abs(zeros.imag) > 1e-9):
+        return None
+    real = int(np.sum(np.abs(poles.imag) < 1e-9))
+    pairs = int(np.sum(poles.imag > 1e-9))
+    return Structure(real, pairs, len(zeros))
+
+
 def g_params_from(structure: Structure, g: LinearBlock | None, span_s: float, dt: float) -> np.ndarray:
     """Start values of ``structure``'s factors: from the poles and zeros of ``g`` where it has the
     same structure, else time constants spread between ``10 dt`` and a tenth of the record."""
@@ -112,7 +123,11 @@ class _Problem:
     y: np.ndarray = field(init=False)
 
     def __post_init__(self):
-        self.y = np.concatenate([r.y for r in self.records])
+        # a record's attribute "burn_in" (samples) leaves its first samples out of the cost: a
+        # stretch cut from a longer experiment starts in a state the nuisance parameters only
+        # approximate (the gear and G at rest)
+        self.keep = np.concatenate([np.arange(r.u.size) >= int(r.attrs.get("burn_in", 0)) for r in self.records])
+        self.y = np.concatenate([r.y for r in self.records])[self.keep]
 
     @property
     def n_outer(self) -> int:
@@ -139,7 +154,7 @@ class _Problem:
         out = []
         for r, (gear, rest) in zip(self.records, states):
             out.append(g.simulate(f.apply(r.u, gear), r.dt, rest))
-        return np.concatenate(out)
+        return np.concatenate(out)[self.keep]
 
     def design(self, w) -> np.ndarray:
         return np.vander(w, self.degree + 1, increasing=True)[:, 1:]
@@ -233,12 +248,22 @@ class WholeModelFit:
 
     def fit(self, records, start: HWModel | None = None) -> "WholeModelFit":
         """Fit on ``records`` (each with ``u``, ``y``, ``dt``); ``start`` (a normalised model, e.g.
-        from the two stages) starts the search, otherwise a coarse grid over the borders does."""
+        from the two stages) starts the search, otherwise a coarse grid over the borders does.
+
+        From a start, the start's type, G structure (where :data:`STRUCTURES` holds it) and the
+        degrees next to its h_bar's are tried; otherwise every type, structure and degree."""
         records = [r for r in records if r.y is not None and r.u.size > 10]
         if not records:
             raise HwidError("the whole-model fit needs at least one experiment of more than 10 samples")
         types = (start.input.type,) if start is not None else tuple(self.types)
         structures = list(self.structures or STRUCTURES)
+        degrees = range(1, self.max_degree + 1)
+        if start is not None:
+            own = structure_of(start.linear)
+            if own is not None:
+                structures = [own]
+            p = len(start.output.coefficients) - 1
+            degrees = range(max(1, p - 1), min(self.max_degree, p + 1) + 1)
         span = max(r.u.size * r.dt for r in records)
         dt = min(r.dt for r in records)
         width = float(np.ptp(np.concatenate([r.u for r in records]))) or 1.0
@@ -246,7 +271,7 @@ class WholeModelFit:
         for kind in types:
             for structure in structures:
                 theta0 = self._start(records, kind, structure, start)
-                for degree in range(1, self.max_degree + 1):
+                for degree in degrees:
                     prob = _Problem(records, kind, structure, degree, self.delay)
                     lo, hi = prob.bounds(width, span, dt)
                     sol = optimize.least_squares(prob.residual, np.clip(theta0, lo + 1e-9, hi - 1e-9),
@@ -341,3 +366,20 @@ def _grad(g, x, rel: float = 1e-7) -> np.ndarray:
         e[i] = h
         out[i] = (g(x + e) - g(x - e)) / (2 * h)
     return float(g(x)), out
+
+
+def fit_records(records, periods: int = 3):
+    """The experiments as the whole-model fit takes them: a sine experiment (attribute ``omega``)
+    cut to its last ``periods`` periods, the first of them a burn-in left out of the cost (its
+    steady state is what matters, and its length would dominate the cost); others whole."""
+    from dataclasses import replace
+    out = []
+    for r in records:
+        omega = r.attrs.get("omega")
+        if omega:
+            n_period = int(np.ceil(2 * np.pi / float(omega) / r.dt))
+            start = max(0, r.u.size - periods * n_period)
+            attrs = {**r.attrs, "burn_in": min(n_period, r.u.size - start - 1)}
+            r = replace(r, u=r.u[start:], y=r.y[start:], v=None, w=None, x=None, z=None, attrs=attrs)
+        out.append(r)
+    return out
