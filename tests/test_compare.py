@@ -77,6 +77,9 @@ def test_cli_compare_json_keys(tmp_path):
     from hwid.results import read_compare
     back = read_compare(tmp_path / "out" / "compare.h5")
     assert set(back["y_model"]) == {e["name"] for e in d["experiments"]}
+    from hwid.report.html import write_report
+    page = write_report(tmp_path / "out").read_text()
+    assert "id='compare'" in page and "fig-compare_overlay" in page and "fig-compare_residual" in page
 
 
 def test_cli_compare_bad_model_is_one_line(tmp_path):

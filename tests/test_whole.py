@@ -105,3 +105,6 @@ def test_run_with_whole_enabled_is_not_worse_than_the_stages(tmp_path):
     by_stages, _ = compare_records(stages, records, noise_floor=0.01)
     assert by_whole.rms <= by_stages.rms * 1.001
     assert by_whole.rms_over_floor < 1.05
+    from hwid.report.html import write_report
+    page = write_report(tmp_path / "run").read_text()
+    assert "id='whole'" in page and f"{whole.d_plus:.4g}" in page

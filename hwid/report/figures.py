@@ -588,3 +588,61 @@ def plot_ranking(diagnosis: Mapping, ax=None) -> Figure:
     ax.set_xlabel("explained fraction of the gap above the noise floor (validation data)")
     ax.set_title(f"verdict: {verdict} ({summary['verdict']['block']})")
     return fig
+
+
+# ------------------------------------------------------------------------ hwid compare
+
+def plot_compare(compare: Mapping, max_experiments: int = 6) -> Figure:
+    """``hwid compare``: each experiment's measured output and the model's free run overlaid (top)
+    and their difference (bottom), one column per experiment (the first ``max_experiments``)."""
+    names = list(compare["y_model"])[:max_experiments]
+    fits = {e["name"]: e for e in compare["summary"]["experiments"]}
+    fig = Figure(figsize=(min(4.0 * len(names), 16), 5), layout="constrained")
+    axes = fig.subplots(2, len(names), sharex="col", squeeze=False)
+    for k, name in enumerate(names):
+        rec = compare["experiments"][name]
+        step = max(1, rec.y.size // 20000)          # a drawn line needs no more points than a screen has
+        t, y, model = rec.t[::step], rec.y[::step], compare["y_model"][name][::step]
+        top, bottom = axes[0, k], axes[1, k]
+        top.plot(t, y, lw=0.7, color="0.4", label="measured y")
+        top.plot(t, model, lw=0.9, color="tab:red", label="model (free run)")
+        top.set_title(f"{name}: fit {fits[name]['fit_percent']:.1f} %", fontsize=9)
+        bottom.plot(t, y - model, lw=0.6, color="tab:blue")
+        bottom.axhline(0, color="k", lw=0.5)
+        bottom.set_xlabel("t [s]")
+        if k == 0:
+            top.set_ylabel("y")
+            bottom.set_ylabel("y - model")
+            top.legend(fontsize=7, loc="upper left")
+    return fig
+
+
+def plot_residual_correlation(compare: Mapping, max_lag: int = 25) -> Figure:
+    """The residual's autocorrelation and its correlation with past inputs (all experiments pooled
+    lag by lag), with the 99 % band of uncorrelated data (``resid``)."""
+    fig = Figure(figsize=(8, 3), layout="constrained")
+    auto_ax, cross_ax = fig.subplots(1, 2)
+    auto, cross, n_total = np.zeros(max_lag + 1), np.zeros(max_lag), 0
+    for name, y_model in compare["y_model"].items():
+        rec = compare["experiments"][name]
+        e = rec.y - y_model
+        e = e - e.mean()
+        u = rec.u - rec.u.mean()
+        n = e.size
+        if n <= max_lag + 1:
+            continue
+        scale_e = float(e @ e) or 1.0
+        scale_eu = np.sqrt(scale_e * (float(u @ u) or 1.0))
+        auto += n * np.array([float(e[k:] @ e[:n - k]) / scale_e for k in range(max_lag + 1)])
+        cross += n * np.array([float(e[k:] @ u[:n - k]) / scale_eu for k in range(max_lag)])
+        n_total += n
+    if n_total:
+        auto, cross = auto / n_total, cross / n_total
+    band = 2.58 / np.sqrt(max(n_total, 1))
+    auto_ax.bar(np.arange(1, max_lag + 1), auto[1:], color="tab:blue")
+    cross_ax.bar(np.arange(max_lag), cross, color="tab:green")
+    for ax, title in ((auto_ax, "residual autocorrelation"), (cross_ax, "residual vs past input")):
+        ax.axhspan(-band, band, color="0.85", zorder=0)
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("lag [samples]")
+    return fig

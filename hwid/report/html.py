@@ -42,7 +42,7 @@ def build_figures(run: RunData, views: ReportViews | None = None) -> list[Figure
     """Every figure the run's data allow, in report order."""
     views = prepare(run) if views is None else views
     return (_staircase_figures(views) + _nonlinearity_figures(run, views) + _linear_figures(run, views)
-            + _batch_figures(run) + _diagnosis_figures(run))
+            + _batch_figures(run) + _diagnosis_figures(run) + _compare_figures(run))
 
 
 def _staircase_figures(views: ReportViews) -> list[FigureItem]:
@@ -165,6 +165,19 @@ def _diagnosis_figures(run: RunData) -> list[FigureItem]:
                        figures.plot_ranking(run.diagnosis), "diagnosis_ranking")]
 
 
+def _compare_figures(run: RunData) -> list[FigureItem]:
+    """``hwid compare``: measured and simulated outputs overlaid, and the residual's correlations."""
+    if run.compare is None:
+        return []
+    return [FigureItem("compare_overlay", "compare",
+                       "Measured output and the model's free run from its estimated initial state (top), "
+                       "and their difference (bottom).", figures.plot_compare(run.compare), "compare_overlay"),
+            FigureItem("compare_residual", "compare",
+                       "Residual tests (resid): autocorrelation, and correlation with past inputs; the grey "
+                       "band holds 99 % of uncorrelated data.", figures.plot_residual_correlation(run.compare),
+                       "compare_residual")]
+
+
 # ================================================================================ the page
 
 CSS = """
@@ -229,6 +242,11 @@ def render_html(run: RunData, items: list[FigureItem], pngs: dict[str, bytes],
                   "<h3>Table 2: frequency gain estimates</h3>", tables.table2_html(run), section_figures("stage2")]
     if run.batch is not None:
         parts += ["<h2>Monte Carlo batch</h2>", tables.batch_table_html(run.batch), section_figures("batch")]
+    if run.whole is not None:
+        parts += ["<h2>The whole model by output error (identification.whole)</h2>", tables.whole_html(run.whole)]
+    if run.compare is not None:
+        parts += ["<h2>Compare: the model against the measured experiments</h2>",
+                  tables.compare_html(run.compare), section_figures("compare")]
     if run.diagnosis is not None:
         parts += ["<h2>Diagnosis: where and why the plant and the model part</h2>",
                   tables.diagnosis_html(run.diagnosis), section_figures("diagnosis")]

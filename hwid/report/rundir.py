@@ -8,6 +8,8 @@
 ``linear.h5``          stage 2 (:func:`hwid.results.read_linear`)
 ``batch.h5``           Monte Carlo summaries (:func:`hwid.results.read_batch_summary`)
 ``diagnosis.h5``       ``hwid diagnose`` (:func:`hwid.results.read_diagnosis`)
+``compare.h5``         ``hwid compare`` (:func:`hwid.results.read_compare`)
+``whole.h5``           the whole-model fit (:func:`hwid.results.read_whole`)
 =====================  =========================================================================
 
 Every file is read through :mod:`hwid.results`; the stage results come back as the writers' own
@@ -24,13 +26,13 @@ import numpy as np
 from hwid import HwidError, config, paper
 from hwid.blocks.linear import LinearBlock
 from hwid.blocks.static import PiecewiseH, PolynomialH
-from hwid.identify.result import LinearResult, NonlinearResult
+from hwid.identify.result import LinearResult, NonlinearResult, WholeResult
 from hwid.model import HWModel, InputNonlinearity, from_config
 from hwid.plant import Record
-from hwid.results import (ResultsError, open_results, read_batch_summary, read_diagnosis, read_dict,
-                          read_linear, read_nonlinear, read_records)
+from hwid.results import (ResultsError, open_results, read_batch_summary, read_compare, read_diagnosis, read_dict,
+                          read_linear, read_nonlinear, read_records, read_whole)
 
-FILES = ("simulation.h5", "nonlinear.h5", "linear.h5", "batch.h5", "diagnosis.h5")
+FILES = ("simulation.h5", "nonlinear.h5", "linear.h5", "batch.h5", "diagnosis.h5", "compare.h5", "whole.h5")
 
 # The signals the figures draw: a staircase's input, output and undisturbed output; a sine's output
 # and undisturbed output (its input, as long as its output, is not read). v, w, z are never read.
@@ -53,6 +55,8 @@ class RunData:
     linear: LinearResult | None = None            # stage 2
     batch: dict | None = None                     # hwid.results.read_batch_summary(...)
     diagnosis: dict | None = None                 # hwid.results.read_diagnosis(...)
+    compare: dict | None = None                   # hwid.results.read_compare(...)
+    whole: WholeResult | None = None              # the whole-model fit
     notes: tuple[str, ...] = ()                   # what is missing, what could not be shown
 
     @property
@@ -79,7 +83,8 @@ def load_run(directory: str | Path) -> RunData:
     if truth is None and cfg is not None and cfg.plant.kind == "hammerstein_wiener":
         truth = from_config(cfg.plant).normalised()
 
-    batch_only = (present["batch.h5"] or present["diagnosis.h5"]) and not any(present[n] for n in FILES[:3])
+    batch_only = (present["batch.h5"] or present["diagnosis.h5"] or present["compare.h5"]) and not any(
+        present[n] for n in FILES[:3])
     nonlinear = linear = None
     if present["nonlinear.h5"]:
         nonlinear = read_nonlinear(directory / "nonlinear.h5", cfg)
@@ -102,8 +107,10 @@ def load_run(directory: str | Path) -> RunData:
             diagnosis = read_diagnosis(directory / "diagnosis.h5")
         except ResultsError as err:
             notes.append(f"diagnosis.h5 could not be read ({err})")
+    compare = read_compare(directory / "compare.h5") if present["compare.h5"] else None
+    whole = read_whole(directory / "whole.h5", cfg) if present["whole.h5"] else None
     return RunData(directory, present, provenance, cfg, config_name, records, truth, nonlinear, linear,
-                   batch, diagnosis, tuple(notes))
+                   batch, diagnosis, compare, whole, tuple(notes))
 
 
 def _present_files(directory: Path) -> dict[str, bool]:

@@ -237,6 +237,46 @@ def diagnosis_html(diagnosis: dict) -> str:
     return "".join(out)
 
 
+def compare_html(compare: dict) -> str:
+    """``hwid compare``: fit, RMS error and residual tests, overall and per experiment."""
+    summary = compare["summary"]
+    floor = summary.get("rms_over_floor")
+    rows = [_tr(["", "fit %", "RMS error", "RMS / noise floor", "samples", "initial gear", "G at rest at",
+                 "whiteness p", "input correlation p"], True)]
+    for e in summary["experiments"]:
+        rows.append(_tr([_html.escape(e["name"]), _num(e["fit_percent"], 4), _num(e["rms"]),
+                         _num(e["rms"] / summary["noise_floor"], 3) if summary.get("noise_floor") else "",
+                         str(e["samples"]), _num(e["gear"]), _num(e["rest"]), _num(e["whiteness_p"], 3),
+                         _num(e["input_correlation_p"], 3)]))
+    rows.append(_tr(["<b>all</b>", _num(summary["fit_percent"], 4), _num(summary["rms"]),
+                     _num(floor, 3) if floor is not None else "", str(sum(e["samples"] for e in summary["experiments"])),
+                     "", "", _num(summary["residual"]["whiteness_p"], 3),
+                     _num(summary["residual"]["input_correlation_p"], 3)]))
+    source = _html.escape(str(summary.get("model", {}).get("path", summary.get("model", {}).get("source", ""))))
+    return (f"<p>Model <code>{source}</code> simulated on each experiment from the initial gear state and "
+            f"G rest level that fit it best (the state a record starts in is unknown).</p>"
+            f"<table id='compare'>{''.join(rows)}</table>")
+
+
+def whole_html(whole) -> str:
+    """The whole-model output-error fit: estimates with 95 % intervals, and its selection table."""
+    rows = [_tr(["parameter", "estimate", "95 % interval"], True)]
+    for name in ("d_plus", "slope_down", "d_minus"):
+        lo, hi = whole.ci[name]
+        rows.append(_tr([name, _num(getattr(whole, name)), f"[{_num(lo)}, {_num(hi)}]"]))
+    for i, (c, (lo, hi)) in enumerate(zip(whole.h_coefficients, whole.ci["h_coefficients"])):
+        if i:
+            rows.append(_tr([f"h_bar c{i}", _num(c), f"[{_num(lo)}, {_num(hi)}]"]))
+    selection = [_tr(["type", "G structure", "degree", "RSS", "parameters", "BIC"], True)]
+    for s in sorted(whole.selection, key=lambda s: s["bic"]):
+        selection.append(_tr([s["type"], s["structure"], str(s["degree"]), _num(s["rss"]), str(s["parameters"]),
+                              _num(s["bic"], 6)]))
+    return (f"<p>{whole.type}; G(s) = {_html.escape(tf_text(whole.num, whole.den, whole.delay))} "
+            f"({whole.structure}); residual σ = {_num(whole.sigma)} on {whole.samples} samples.</p>"
+            f"<table id='whole'>{''.join(rows)}</table>"
+            f"<details><summary>selection (BIC, smallest first)</summary><table>{''.join(selection)}</table></details>")
+
+
 # ------------------------------------------------------------------- model, warnings, provenance
 
 def _nonlinear_model_rows(nl) -> list[tuple[str, str]]:
