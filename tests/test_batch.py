@@ -10,30 +10,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import plants
 from hwid import config
 from hwid.batch import read_journal, run_batch
 from hwid.results import read_batch_runs, read_batch_summary
-
-FAST = """
-name: fast
-seed: 7
-sampling: {dt: 0.05}
-plant:
-  kind: hammerstein_wiener
-  input_nonlinearity: {type: backlash, slope_up: 1.0, slope_down: 1.2, d_plus: 0.4, d_minus: -0.3}
-  linear: {num: [2.0], den: [1.0, 2.0]}
-  output_nonlinearity: {polynomial: [0, 0.5, 0, -0.2, 0, 0.1]}
-  noise: {std: 0.01}
-protocols:
-  staircase: {levels_up: [-1.0, -0.8, -0.6, -0.2, 0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2], levels_down: [0.9, 0.7, 0.5, 0.3, 0.1, -0.1, -0.3, -0.5, -0.7, -0.9, -1.1], hold: 6.0}
-  sine: {amplitude: 0.8, frequencies: [0.5, 2.0], periods: 4, lead_in_periods: 2}
-"""
 
 
 @pytest.fixture
 def fast_cfg(tmp_path):
     p = tmp_path / "fast.yaml"
-    p.write_text(FAST)
+    p.write_text(plants.config_text(plants.BATCH))
     return config.load(p)
 
 

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
+import plants
 from hwid import HwidError, config
 from hwid.blocks.linear import LinearBlock
 from hwid.cli import main
@@ -440,26 +441,13 @@ def test_bad_directories_one_line_exit_2(case, full_run, tmp_path, capsys, tmp_p
 
 # --------------------------------------------------------------------------------- batches
 
-FAST = """
-name: fast
-seed: 7
-sampling: {dt: 0.05}
-plant:
-  kind: hammerstein_wiener
-  input_nonlinearity: {type: backlash, slope_up: 1.0, slope_down: 1.2, d_plus: 0.4, d_minus: -0.3}
-  linear: {num: [2.0], den: [1.0, 2.0]}
-  output_nonlinearity: {polynomial: [0, 0.5, 0, -0.2, 0, 0.1]}
-  noise: {std: 0.01}
-protocols:
-  staircase: {levels_up: [-1.0, -0.8, -0.6, -0.2, 0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2], levels_down: [0.9, 0.7, 0.5, 0.3, 0.1, -0.1, -0.3, -0.5, -0.7, -0.9, -1.1], hold: 6.0}
-"""
 
 
 def test_batch_directory(tmp_path, tmp_path_factory):
     import concurrent.futures as cf
     from hwid.batch import run_batch
     from hwid.results import read_batch_summary
-    cfg = _cfg(tmp_path_factory, FAST, "fast.yaml")
+    cfg = _cfg(tmp_path_factory, plants.config_text(plants.BATCH, **{"protocols.sine": plants.DELETE}), "fast.yaml")
     with cf.ThreadPoolExecutor(1) as ex:      # in-process: no worker start-up in a unit test
         run_batch(cfg, 1, tmp_path, [("plant.noise.std", [0.01, 0.03])], executor=ex, progress=False)
     path = html.write_report(tmp_path)
