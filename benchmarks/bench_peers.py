@@ -1,0 +1,241 @@
+"""hwid side by side with what users would pick instead, on the same data (issue 16).
+
+For each simulated plant, two identification data sets of equal rig time:
+
+* ``hwid protocol``: hwid's own staircases and sines through the true pre-compensator (Fig. 8);
+* ``peer design``: random steps with random holds and a chirp, what a NARX or OE user records.
+
+Every method is fitted on each set and judged on the same held-out records that no method saw (a
+random multilevel input with random holds, a sine sweep at another amplitude, a triangle), by its
+free-run simulation error (never one-step-ahead): RMS and RMS over the noise sigma. Methods:
+
+* ``hwid stages``: the paper's two stages with the parametric G(s) (hwid protocol only: they need it);
+* ``hwid whole``: the whole-model output-error fit (started from the stages where they ran);
+* ``NARX (FROLS)``: a polynomial NARX by FROLS (sysidentpy), degree 3, lags 2, BIC, as a careful
+  user would start;
+* ``linear OE``: the best linear approximation, an output-error model with a first- or second-order G;
+* ``nlhw analogue``: the same output-error fit with hwid's F replaced by a static dead zone (what
+  MATLAB's ``nlhw`` offers for play): what memory in the input block is worth;
+* ``truth``: the true plant without noise (the floor).
+
+sysidentpy pins an older numpy, so the peers get a virtual environment of their own:
+``python3.11 -m venv .venv-peers && .venv-peers/bin/pip install -e '.[peers]'``; then
+``.venv-peers/bin/python benchmarks/bench_peers.py`` prints the table.
+"""
+from __future__ import annotations
+
+import os
+import platform
+import time
+import warnings
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+import yaml  # noqa: E402
+from scipy import optimize  # noqa: E402
+
+from hwid import config  # noqa: E402
+from hwid.compare import compare_records  # noqa: E402
+from hwid.identify.linear import ExtrapolationWarning, identify_linear  # noqa: E402
+from hwid.identify.nonlinear import identify_nonlinear  # noqa: E402
+from hwid.identify.result import model_from_stages  # noqa: E402
+from hwid.identify.whole import Structure, WholeModelFit, g_from_params, g_params_from  # noqa: E402
+from hwid.model import from_config  # noqa: E402
+from hwid.plant import Record, SimulatedPlant  # noqa: E402
+
+SIGMA = 0.01
+PLANTS = {
+    "paper": {"input_nonlinearity": {"type": "backlash", "slope_up": 1.0, "slope_down": 1.0, "d_plus": 0.5, "d_minus": -0.5},
+              "linear": {"num": [0.2], "den": [1.0, 0.7, 0.1]},
+              "output_nonlinearity": {"polynomial": [0, 0.25, 0, -0.42, 0, 0.2]}},
+    "asymmetric": {"input_nonlinearity": {"type": "backlash", "slope_up": 1.2, "slope_down": 0.8, "d_plus": 0.4, "d_minus": -0.2},
+                   "linear": {"num": [2.25], "den": [1.0, 0.9, 2.25]},
+                   "output_nonlinearity": {"polynomial": [0, 1.0, 0.25]}},
+    "backlash-inverse": {"input_nonlinearity": {"type": "backlash_inverse", "slope_up": 1.0, "slope_down": 1.1,
+                                                "d_plus": 0.2, "d_minus": -0.1},
+                         "linear": {"num": [1.0], "den": [1.0, 1.0]},
+                         "output_nonlinearity": {"polynomial": [0, 1.0, 0.3, -0.5]}},
+}
+DT = 0.05
+
+
+def plant_config(name: str) -> config.Config:
+    p = PLANTS[name]
+    return config.loads(yaml.safe_dump({
+        "name": f"peers-{name}", "seed": 11, "sampling": {"dt": DT},
+        "plant": {"kind": "hammerstein_wiener", **p, "noise": {"std": SIGMA}},
+        "protocols": {"staircase": {"levels_up": [-1.2, -0.9, -0.6, -0.3, 0.0, 0.3, 0.6, 0.9, 1.2],
+                                    "levels_down": [0.9, 0.6, 0.3, 0.0, -0.3, -0.6, -0.9, -1.2], "hold": 30.0},
+                      "sine": {"amplitude": 1.0, "frequencies": [0.05, 0.1, 0.2, 0.5, 1.0], "periods": 6,
+                               "lead_in_periods": 2}},
+        "identification": {"nonlinear": {"max_degree": 5}}}))
+
+
+def random_steps(rng, seconds: float, lo=-1.3, hi=1.3, hold=(2.0, 20.0)) -> np.ndarray:
+    u = []
+    while len(u) * DT < seconds:
+        u += [rng.uniform(lo, hi)] * int(rng.uniform(*hold) / DT)
+    return np.array(u[:int(seconds / DT)])
+
+
+def chirp(seconds: float, amplitude: float, w0: float, w1: float) -> np.ndarray:
+    t = np.arange(int(seconds / DT)) * DT
+    phase = w0 * t + (w1 - w0) * t * t / (2 * seconds)
+    return amplitude * np.sin(phase)
+
+
+def triangle(seconds: float, amplitude: float, period: float) -> np.ndarray:
+    t = np.arange(int(seconds / DT)) * DT
+    return amplitude * (2 * np.abs(2 * (t / period - np.floor(t / period + 0.5))) - 1)
+
+
+def validation_records(truth, rng) -> list[Record]:
+    inputs = {"random_levels": random_steps(rng, 400.0, hold=(3.0, 25.0)),
+              "sweep": chirp(400.0, 0.8, 0.02, 1.5),
+              "triangle": triangle(300.0, 1.1, 60.0)}
+    return [Record(name, DT, u, truth.simulate(u, DT).x + SIGMA * rng.standard_normal(u.size))
+            for name, u in inputs.items()]
+
+
+# --------------------------------------------------------------------------------- the peers
+
+def fit_narx(records):
+    from sysidentpy.basis_function import Polynomial
+    from sysidentpy.model_structure_selection import FROLS
+    from sysidentpy.parameter_estimation import LeastSquares
+    u = np.concatenate([r.u for r in records])[:, None]
+    y = np.concatenate([r.y for r in records])[:, None]
+    model = FROLS(order_selection=True, ylag=2, xlag=2, info_criteria="bic", n_info_values=30,
+                  estimator=LeastSquares(), basis_function=Polynomial(degree=3))
+    model.fit(X=u, y=y)
+
+    def simulate(rec):
+        with np.errstate(all="ignore"):
+            out = model.predict(X=rec.u[:, None], y=rec.y[:model.max_lag, None])[:, 0]
+        return np.where(np.isfinite(out), out, 1e3)
+    return simulate
+
+
+class _OutputError:
+    """Output-error fit of ``y = h(G * F(u))`` with a static F (identity, or a dead zone) and a
+    polynomial h (solved for), G of unit gain from :func:`hwid.identify.whole.g_from_params`."""
+
+    def __init__(self, structure: Structure, degree: int, dead_zone: bool):
+        self.structure, self.degree, self.dead_zone = structure, degree, dead_zone
+
+    def _w(self, theta, u, dt):
+        n_g = self.structure.n_params
+        g = g_from_params(self.structure, theta[:n_g])
+        if self.dead_zone:
+            d_plus, d_minus = theta[n_g], theta[n_g] - np.exp(theta[n_g + 1])
+            u = np.where(u > d_plus, u - d_plus, np.where(u < d_minus, u - d_minus, 0.0))
+        return g.simulate(u, dt)
+
+    def _design(self, w):
+        return np.vander(w, self.degree + 1, increasing=True)
+
+    def fit(self, records):
+        y = np.concatenate([r.y for r in records])
+
+        def residual(theta):
+            w = np.concatenate([self._w(theta, r.u, r.dt) for r in records])
+            if not np.all(np.isfinite(w)):
+                return np.full(y.size, 1e3)
+            phi = self._design(w)
+            return y - phi @ np.linalg.lstsq(phi, y, rcond=None)[0]
+        span = max(r.u.size * r.dt for r in records)
+        theta0 = list(g_params_from(self.structure, None, span, records[0].dt))
+        if self.dead_zone:
+            theta0 += [0.2, np.log(0.4)]
+        best = optimize.least_squares(residual, np.array(theta0), x_scale=1.0, max_nfev=300)
+        self.theta = best.x
+        w = np.concatenate([self._w(best.x, r.u, r.dt) for r in records])
+        self.coef = np.linalg.lstsq(self._design(w), y, rcond=None)[0]
+        return self
+
+    def simulate(self, rec):
+        return self._design(self._w(self.theta, rec.u, rec.dt)) @ self.coef
+
+
+def fit_output_error(records, dead_zone: bool):
+    """The better of a first- and a second-order G (BIC), h of degree 5 (linear OE: degree 1)."""
+    degree = 5 if dead_zone else 1
+    fits = []
+    y = np.concatenate([r.y for r in records])
+    for structure in (Structure(1, 0), Structure(0, 1)):
+        model = _OutputError(structure, degree, dead_zone).fit(records)
+        rss = float(sum(np.sum((r.y - model.simulate(r)) ** 2) for r in records))
+        k = structure.n_params + degree + 1 + 2 * dead_zone
+        fits.append((y.size * np.log(rss / y.size) + k * np.log(y.size), model))
+    return min(fits, key=lambda f: f[0])[1].simulate
+
+
+# --------------------------------------------------------------------------------- the runs
+
+def hwid_protocol_records(cfg, truth):
+    plant = SimulatedPlant(truth, DT, SIGMA, seed=np.random.SeedSequence(5))
+    nl, nl_records = identify_nonlinear(cfg, plant=plant)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExtrapolationWarning)
+        lin, lin_records = identify_linear(cfg, nl, plant=plant)
+    return list(nl_records) + list(lin_records), model_from_stages(nl, lin)
+
+
+def judge(simulate_or_model, validation) -> float:
+    """RMS over sigma of the free run on the validation records (hwid models from their estimated
+    initial state, as ``hwid compare`` does)."""
+    if hasattr(simulate_or_model, "simulate") and hasattr(simulate_or_model, "input"):
+        result, _ = compare_records(simulate_or_model, validation)
+        return result.rms / SIGMA
+    errors = np.concatenate([r.y - simulate_or_model(r) for r in validation])
+    return float(np.sqrt(np.mean(errors ** 2))) / SIGMA
+
+
+def run_plant(name: str) -> list[tuple]:
+    cfg = plant_config(name)
+    truth = from_config(cfg.plant)
+    validation = validation_records(truth, np.random.default_rng(99))
+    rows = [(name, "-", "truth (floor)", judge(truth, validation), 0.0, "nothing")]
+    t0 = time.perf_counter()
+    protocol, stages = hwid_protocol_records(cfg, truth)
+    t_stages = time.perf_counter() - t0
+    rig_seconds = sum(r.u.size for r in protocol) * DT
+    peer = [Record("steps", DT, u, truth.simulate(u, DT).x + SIGMA * np.random.default_rng(7).standard_normal(u.size))
+            for u in (random_steps(np.random.default_rng(3), 0.7 * rig_seconds),)]
+    sweep = chirp(0.3 * rig_seconds, 1.0, 0.02, 1.5)
+    peer.append(Record("chirp", DT, sweep, truth.simulate(sweep, DT).x + SIGMA * np.random.default_rng(8).standard_normal(sweep.size)))
+    rows.append((name, "hwid protocol", "hwid stages", judge(stages, validation), t_stages, "none (protocol from the config)"))
+    from hwid.identify.whole import fit_records
+    for design, records, start in (("hwid protocol", fit_records(protocol), stages), ("peer design", peer, None)):
+        t0 = time.perf_counter()
+        whole = WholeModelFit(max_degree=5, structures=[Structure(1, 0), Structure(2, 0), Structure(0, 1)]).fit(
+            records, start=start).result_.model()
+        rows.append((name, design, "hwid whole", judge(whole, validation), time.perf_counter() - t0, "none"))
+        for method, fit, tuned in (("NARX (FROLS)", fit_narx, "degree 3, lags 2"),
+                                   ("linear OE", lambda r: fit_output_error(r, False), "G order 1-2"),
+                                   ("nlhw analogue", lambda r: fit_output_error(r, True), "dead zone, h degree 5, G order 1-2")):
+            t0 = time.perf_counter()
+            try:
+                rows.append((name, design, method, judge(fit(records), validation), time.perf_counter() - t0, tuned))
+            except Exception as err:  # noqa: BLE001 - a peer that fails is reported, not hidden
+                rows.append((name, design, method, float("nan"), time.perf_counter() - t0, f"failed: {err}"))
+    print(f"  {name}: {rig_seconds:.0f} rig-seconds per design", flush=True)
+    return rows
+
+
+def main():
+    print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+          f"numpy {np.__version__}")
+    rows = []
+    for name in PLANTS:
+        rows += run_plant(name)
+    print("\n| plant | data | method | RMS / sigma (held out, free run) | fit s | tuned by hand |")
+    print("|---|---|---|---|---|---|")
+    for plant, design, method, ratio, seconds, tuned in rows:
+        print(f"| {plant} | {design} | {method} | {ratio:.3g} | {seconds:.1f} | {tuned} |")
+
+
+if __name__ == "__main__":
+    main()
