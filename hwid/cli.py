@@ -40,8 +40,8 @@ def _out_dir(out: Path) -> Path:
 @app.command()
 def check(config: Path = typer.Argument(..., help="Config YAML to validate.")):
     """Validate a config and exit (0 if it is usable, 2 with one line if not)."""
-    from hwid import config as C
-    cfg = C.load(config)
+    from hwid.config import load as load_config
+    cfg = load_config(config)
     if cfg.plant.kind == "external":
         from hwid.plant import load_external
         load_external(cfg)   # imports the named callable (only that) and checks its signature
@@ -52,9 +52,9 @@ def check(config: Path = typer.Argument(..., help="Config YAML to validate.")):
 def simulate(config: Path = typer.Argument(..., help="Config YAML."),
              out: Path = typer.Option(..., "--out", help="Output directory (simulation.h5 goes here).")):
     """Run the config's staircases and sines on its plant; write OUT/simulation.h5."""
-    from hwid import config as C
+    from hwid.config import load as load_config
     from hwid.simulate import simulate as run
-    cfg = C.load(config)
+    cfg = load_config(config)
     path = run(cfg, _out_dir(out))
     typer.echo(f"wrote {path}")
 
@@ -66,19 +66,18 @@ def identify_linear(config: Path = typer.Argument(..., help="Config YAML."),
                     json_out: Optional[Path] = typer.Option(None, "--json", help="Also write the result as JSON.")):
     """Stage 2 (Section 5): sines behind the estimated pre-compensator, G(jw), a rational G(s); OUT/linear.h5."""
     import warnings
-    from hwid import config as C
-    from hwid.identify import linear as L
-    from hwid.results import write_json
-    cfg = C.load(config)
+    from hwid.config import load as load_config
     from hwid import results
+    from hwid.identify import linear as linear_stage
+    cfg = load_config(config)
     nl = results.read_nonlinear(nonlinear, cfg)
     out = _out_dir(out)
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", L.ExtrapolationWarning)   # listed below from the result
-        res, records = L.identify_linear(cfg, nl, journal_dir=out / "rig_journal")
+        warnings.simplefilter("ignore", linear_stage.ExtrapolationWarning)   # listed below from the result
+        res, records = linear_stage.identify_linear(cfg, nl, journal_dir=out / "rig_journal")
     path = results.write_linear(out / "linear.h5", cfg, res, records)
     if json_out is not None:
-        write_json(json_out, res.to_dict())
+        results.write_json(json_out, res.to_dict())
     for i, w in enumerate(res.frequencies):
         typer.echo(f"w = {w:g} rad/s: |G| = {res.gain[i]:.5g} [{res.gain_ci[i][0]:.5g}, {res.gain_ci[i][1]:.5g}]"
                    f"  phi = {res.phase[i]:.5g} [{res.phase_ci[i][0]:.5g}, {res.phase_ci[i][1]:.5g}] rad")
@@ -94,16 +93,17 @@ def identify_nonlinear(config: Path = typer.Argument(..., help="Config YAML."),
                        out: Path = typer.Option(..., "--out", help="Output directory (nonlinear.h5 goes here)."),
                        json_out: Optional[Path] = typer.Option(None, "--json", help="Also write the result as JSON.")):
     """Stage 1 (Section 4): staircases -> h, the backlash borders and their type; OUT/nonlinear.h5."""
-    from hwid import config as C
-    from hwid.identify import nonlinear as NL
+    from hwid.config import load as load_config
+    from hwid.identify.nonlinear import identify_nonlinear as run_stage1
+    from hwid.identify.result import format_summary
     from hwid.results import write_json, write_nonlinear
-    cfg = C.load(config)
+    cfg = load_config(config)
     out = _out_dir(out)
-    res, records = NL.identify_nonlinear(cfg, data=data, journal_dir=out / "rig_journal")
+    res, records = run_stage1(cfg, data=data, journal_dir=out / "rig_journal")
     path = write_nonlinear(out, cfg, res, records)
     if json_out is not None:
         write_json(json_out, res.to_dict())
-    typer.echo(NL.format_summary(res))
+    typer.echo(format_summary(res))
     for msg in res.warnings:
         typer.echo(f"warning: {msg}", err=True)
     typer.echo(f"wrote {path}")
@@ -131,10 +131,10 @@ def run_all(config: Path = typer.Argument(..., help="Config YAML."),
             no_report: bool = typer.Option(False, "--no-report", help="Skip the HTML report.")):
     """The whole job: staircases, stage 1, stage 2 behind the estimated pre-compensator, the report."""
     import time
-    from hwid import config as C
+    from hwid.config import load as load_config
     from hwid.pipeline import run
     t0 = time.perf_counter()
-    cfg = C.load(config)
+    cfg = load_config(config)
     run(cfg, _out_dir(out), report=not no_report, echo=typer.echo)
     typer.echo(f"done in {time.perf_counter() - t0:.1f} s: {out}")
 
@@ -147,10 +147,10 @@ def batch(config: Path = typer.Argument(..., help="Config YAML (a simulated plan
           sweep: list[str] = typer.Option([], "--sweep", help="KEY=V1,V2,... (repeatable; crossed)."),
           scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://host:port.")):
     """Monte Carlo over noise realisations, optionally crossed with config sweeps; resumable."""
-    from hwid import config as C
+    from hwid.config import load as load_config
     from hwid.batch import parse_sweep, run_batch
     from hwid.results import read_batch_summary
-    cfg = C.load(config)
+    cfg = load_config(config)
     if jobs < 1:
         raise HwidError("--jobs must be at least 1")
     path = run_batch(cfg, runs, _out_dir(out), [parse_sweep(s) for s in sweep], jobs=jobs, scheduler=scheduler)
@@ -181,9 +181,9 @@ def diagnose(config: Path = typer.Argument(..., help="Config YAML: its plant is 
              out: Path = typer.Option(..., "--out", help="Output directory (diagnosis.h5, rig_journal/)."),
              json_out: Optional[Path] = typer.Option(None, "--json", help="JSON summary (default OUT/diagnosis.json).")):
     """Where and why the plant and the model part: names the unmodelled effect of the catalogue."""
-    from hwid import config as C
+    from hwid.config import load as load_config
     from hwid.diagnose import diagnose as run
-    cfg = C.load(config)
+    cfg = load_config(config)
     run(cfg, _out_dir(out), model=model, json_path=json_out, echo=typer.echo)
 
 
@@ -195,9 +195,9 @@ def compare(model: Path = typer.Argument(..., help="The model: an 'hwid run' dir
             out: Path = typer.Option(..., "--out", help="Output directory (compare.h5, compare.json)."),
             json_out: Optional[Path] = typer.Option(None, "--json", help="JSON summary (default OUT/compare.json).")):
     """The model's free run against every experiment: fit %, RMS error, residual tests."""
-    from hwid import config as C
+    from hwid.config import load as load_config
     from hwid.compare import compare as run
-    cfg = C.load(config)
+    cfg = load_config(config)
     run(model, cfg, _out_dir(out), json_path=json_out, echo=typer.echo)
 
 

@@ -185,7 +185,7 @@ def experiments_of(cfg, out_dir: Path):
 def compare(model_spec, cfg, out_dir, json_path=None, echo=print) -> CompareResult:
     """``hwid compare MODEL CONFIG --out DIR``: writes ``DIR/compare.h5`` and ``DIR/compare.json``
     (or ``json_path``); returns the result."""
-    from hwid.diagnose import load_model
+    from hwid.diagnose.sim_side import load_model
     from hwid.results import write_compare, write_json
     out = Path(out_dir)
     model, info = load_model(model_spec, echo=echo)

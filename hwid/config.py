@@ -500,3 +500,13 @@ def with_overrides(cfg: Config, overrides: dict[str, Any]) -> Config:
                 node = node.setdefault(part, {})
     text = yaml.safe_dump(data, sort_keys=False)
     return loads(text, source_path=f"{cfg.source_path} [{', '.join(f'{k}={v}' for k, v in overrides.items())}]")
+
+
+def parse_plant(data: Any, source: str) -> PlantCfg:
+    """Validate a plant mapping on its own (a ``--model`` file); raise :class:`ConfigError` with one
+    line ``SOURCE: plant.KEY: reason``."""
+    try:
+        return PlantCfg.model_validate(data)
+    except ValidationError as err:
+        where, why = _first_error(err)
+        raise ConfigError(f"{source}: plant.{where}: {why}") from None

@@ -7,6 +7,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+from scipy import stats
+
+from hwid import protocols
+from hwid.model import from_config
+
 #: ``name:`` of ``configs/paper.yaml``; a run with this name gets the paper's columns in its report.
 CONFIG_NAME = "paper-section6"
 
@@ -59,3 +65,36 @@ def table1_row(j: int) -> Table1Row | None:
 def table2_row(omega: float, rtol: float = 1e-9) -> Table2Row | None:
     """Table 2's row at ``omega`` (rad/s), or None where the paper gives none."""
     return next((r for r in TABLE2 if abs(r.omega - omega) <= rtol * max(abs(omega), 1.0)), None)
+
+
+# ------------------------------------------------------------------------- ours beside theirs
+
+def table1_rows(cfg, result) -> dict:
+    """Table 1 side by side for a simulated config: for every level j (1-based over both staircases)
+    ``U_j``, the paper's ``X_j`` and ``X_hat_j(M)`` where the paper gives them, the true ``X_j`` of the
+    normalised plant, ours and its interval; and the borders (paper, truth, ours, interval)."""
+    truth = from_config(cfg.plant).normalised()
+    up, down = protocols.staircases(cfg)
+    Xt = np.concatenate([truth.staircase_steady(up.lead_in, up.levels),
+                         truth.staircase_steady(down.lead_in, down.levels)])
+    published = {r.j: (r.X, r.X_hat) for r in TABLE1}
+    # simultaneous (Sidak) 95 % intervals over all levels of the table: each pointwise interval
+    # widened from z_{0.975} to z_{(1 + 0.95^{1/n})/2}, so all n hold the truth together w.p. 95 %
+    n = len(result.X_hat)
+    widen = stats.norm.ppf(0.5 + 0.5 * 0.95 ** (1.0 / n)) / stats.norm.ppf(0.975)
+    rows = []
+    for j, (u, x, ci, xt) in enumerate(zip(result.levels, result.X_hat, result.ci["X_hat"], Xt), start=1):
+        px, pxh = published.get(j, (None, None))
+        half = 0.5 * (ci[1] - ci[0]) * widen
+        cj = (x - half, x + half)
+        rows.append({"j": j, "U": u, "paper_X": px, "paper_X_hat": pxh, "true_X": float(xt), "X_hat": x,
+                     "ci": tuple(ci), "inside": bool(ci[0] <= xt <= ci[1]),
+                     "ci_joint": cj, "inside_joint": bool(cj[0] <= xt <= cj[1])})
+    true_b = {"d_plus": truth.input.d_plus, "slope_down": truth.input.slope_down, "d_minus": truth.input.d_minus}
+    borders = []
+    for k in ("d_plus", "slope_down", "d_minus"):
+        ci = result.ci[k]
+        borders.append({"name": k, "paper": BORDERS[k], "true": float(true_b[k]),
+                        "ours": float(getattr(result, k)), "ci": tuple(ci),
+                        "inside": bool(ci[0] <= true_b[k] <= ci[1])})
+    return {"rows": rows, "borders": borders}

@@ -85,6 +85,7 @@ class SimulatedPlant:
         self.seed_seq = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
         self.state = initial_state
         self.calls = 0
+        self.reused = 0         # a simulation is never answered from a journal
 
     def run(self, name: str, u, z=None) -> Record:
         u = np.ascontiguousarray(u, dtype=float)

@@ -18,7 +18,8 @@ import yaml
 
 from hwid import config
 from hwid.cli import main
-from hwid.diagnose import CATALOGUE, diagnose, plot_ranking, plot_residual_map
+from hwid.diagnose import CATALOGUE, diagnose
+from hwid.report.figures import plot_ranking, plot_residual_map
 from hwid.results import read_diagnosis
 
 import diagnose_rigs as R
@@ -177,25 +178,6 @@ def test_refloor_measures_the_excess_down_to_the_smallest_gap_left():
     assert floor == 0.0099 and same == cands[:2]
 
 
-def test_no_parametric_g_falls_back_to_a_first_order_fit():
-    """Stage 2 found no stable rational G (the diagnosis used to stop): the model is built with
-    1/(tau s + 1) fitted to the estimates; for estimates of 1/(2 s + 1), tau = 2."""
-    from types import SimpleNamespace
-
-    from hwid.diagnose import model_from_results
-    w = np.array([0.1, 0.3, 1.0, 3.0])
-    G = 1.0 / (1.0 + 2j * w)
-    lin = SimpleNamespace(frequencies=w, gain=np.abs(G), phase=-np.angle(G),
-                          parametric={"num": [], "den": [], "delay": 0.0, "error": "no stable rational model"})
-    from hwid.model import InputNonlinearity
-    nl = SimpleNamespace(input_nonlinearity=lambda: InputNonlinearity("backlash", 1.0, 1.0, 0.3, -0.3),
-                         h_coefficients=[0.0, 1.0, 0.0, -0.1])
-    notes: list = []
-    m = model_from_results(nl, lin, notes)
-    assert m.linear.den[0] == pytest.approx(2.0, rel=1e-4) and m.linear.num == (1.0,)
-    assert len(notes) == 1 and "no stable rational model" in notes[0]
-
-
 def test_refloor_ties_candidates_whose_scores_are_close():
     """Down to the smallest gap left, 0.010015 and 0.010023 explain 1.0 and 0.90 of the excess
     above it, yet their BIC scores differ by 4: a tie, where the resonance pressed against its
@@ -284,7 +266,7 @@ def test_mirror_rhp_zeros_keeps_the_gain_and_gives_the_delay():
     """A rational G that took a delay as excess phase has zeros in the right half plane; mirrored,
     |G(jw)| and G(0) stay and the phase lag they added goes: for (1 - s/z) that lag is
     2 atan(w/z), a delay of 2/z at low frequency; a complex pair a +- jb adds 2 * 2a/(a^2 + b^2)."""
-    from hwid.diagnose.rank import mirror_rhp_zeros
+    from hwid.diagnose.baseline import mirror_rhp_zeros
     w = np.array([0.01, 0.3, 1.0, 3.0, 10.0])
     s = 1j * w
     num = np.polymul([-1 / 8.0, 1.0], [1 / 2.0, 1.0])             # zeros at +8 and -2
@@ -308,7 +290,7 @@ def test_split_modes_takes_out_modes_and_cancels_artefacts():
     to ``resonance``; one that a zero pair at its frequency cancels (a stage 2 fit gave poles at
     0.0155 rad/s, zeta 0.044, and zeros at 0.0155 rad/s) is an artefact: both go, no mode. A
     well-damped pair, or a light one inside the band, stays."""
-    from hwid.diagnose.rank import split_modes
+    from hwid.diagnose.baseline import split_modes
     base = np.array([10.0, 7.0, 1.0])
     mode = np.array([1 / 1.0 ** 2, 2 * 0.05 / 1.0, 1.0])                       # omega_n 1, zeta 0.05
     num, den, modes, canc = split_modes([1.0], np.polymul(base, mode), (0.02, 0.2), 0.3)
@@ -369,7 +351,7 @@ def test_cancel_slow_pairs_takes_out_a_gain_step_below_the_band():
     """A real pole-zero pair at 0.0024 / 0.0026 rad/s under a band from 0.02 (as stage 2 fitted on
     the paper plant behind a clipping sensor) goes; the plant's own poles (0.2 and 0.5 rad/s, in
     the band) and a pair too far apart to cancel stay."""
-    from hwid.diagnose.rank import cancel_slow_pairs
+    from hwid.diagnose.baseline import cancel_slow_pairs
     base = np.polymul([5.0, 1.0], [2.0, 1.0])                    # poles at 0.2 and 0.5 rad/s
     num = np.array([1 / 0.0026, 1.0])
     den = np.polymul(base, [1 / 0.0024, 1.0])

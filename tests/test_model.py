@@ -39,3 +39,22 @@ def test_staircase_truth_after_the_lead_in():
     # from below every border, rising levels push the gear along the ascending border (eq. 7b)
     X = model.staircase_steady([-2.0], [-1.0, 0.0, 1.0])
     assert X.tolist() == pytest.approx([-1.5, -0.5, 0.5])
+
+
+def test_no_parametric_g_falls_back_to_a_first_order_fit():
+    """Stage 2 found no stable rational G: the model is built with
+    1/(tau s + 1) fitted to the estimates; for estimates of 1/(2 s + 1), tau = 2."""
+    from types import SimpleNamespace
+
+    from hwid.identify.result import model_from_stages
+    w = np.array([0.1, 0.3, 1.0, 3.0])
+    G = 1.0 / (1.0 + 2j * w)
+    lin = SimpleNamespace(frequencies=w, gain=np.abs(G), phase=-np.angle(G),
+                          parametric={"num": [], "den": [], "delay": 0.0, "error": "no stable rational model"})
+    from hwid.model import InputNonlinearity
+    nl = SimpleNamespace(input_nonlinearity=lambda: InputNonlinearity("backlash", 1.0, 1.0, 0.3, -0.3),
+                         h_coefficients=[0.0, 1.0, 0.0, -0.1])
+    notes: list = []
+    m = model_from_stages(nl, lin, notes)
+    assert m.linear.den[0] == pytest.approx(2.0, rel=1e-4) and m.linear.num == (1.0,)
+    assert len(notes) == 1 and "no stable rational model" in notes[0]

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from hwid import HwidError, config, protocols
-from hwid.identify.nonlinear import NonlinearEstimator, identify_nonlinear, table1_rows
+from hwid.identify.nonlinear import NonlinearEstimator, identify_nonlinear
+from hwid.paper import table1_rows
 from hwid.identify.steady import steady_levels
 from hwid.model import from_config
 from hwid.plant import make_plant

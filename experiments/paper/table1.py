@@ -5,7 +5,7 @@
 Prints, for every level of both staircases, U_j, the paper's X_j and X_hat_j(M) (where Table 1 gives
 them), the true X_j of the normalised plant, and ours with its 95 % interval; then d^+, S^d, d^- as the
 paper gives them (0.503, 1.01, -0.49), the truth and ours. The rows come from
-:func:`hwid.identify.nonlinear.table1_rows`, which tests and the report reuse.
+:func:`hwid.paper.table1_rows`, which tests and the report reuse.
 """
 from __future__ import annotations
 
@@ -20,7 +20,8 @@ ROOT = Path(__file__).resolve().parents[2]
 def run(seed: int | None = None, method: str | None = None):
     """Run stage 1 on the paper's plant; return ``(cfg, result, table)``."""
     from hwid import config
-    from hwid.identify.nonlinear import identify_nonlinear, table1_rows
+    from hwid.identify.nonlinear import identify_nonlinear
+    from hwid.paper import table1_rows
     cfg = config.load(ROOT / "configs" / "paper.yaml")
     over = {}
     if seed is not None:

@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from hwid.diagnose import effects as E
+from hwid.diagnose import effects as effect_models
+from hwid.diagnose.baseline import cancel_slow_pairs, mirror_rhp_zeros, split_modes
 from hwid.diagnose.gap import rms
 from hwid.model import InputNonlinearity
 
@@ -57,92 +58,6 @@ class Candidate:
 def excess(gap_rms: float, sigma: float) -> float:
     """The gap above the noise floor, ``sqrt(max(gap^2 - sigma^2, 0))`` (noise adds in quadrature)."""
     return float(np.sqrt(max(gap_rms * gap_rms - sigma * sigma, 0.0)))
-
-
-def split_modes(num, den, band, zeta_light: float):
-    """G's lightly damped pole pairs (``zeta < zeta_light``) with ``omega_n`` outside ``band``,
-    taken out: ``(num, den, modes, cancelled)`` with ``den`` (and, when a pair was cancelled,
-    ``num``) normalised to 1 at ``s = 0``, ``modes`` the ``(omega_n, zeta)`` taken out, and
-    ``cancelled`` whether a pair went with a complex zero pair within 20 % of its frequency (an
-    artefact of the rational fit, not a mode: both leave G and the pair is not in ``modes``)."""
-    lo, hi = float(min(band)), float(max(band))
-    num = np.trim_zeros(np.asarray(num, float), "f")
-    zeros = list(np.roots(num)) if num.size > 1 else []
-    keep, modes, cancelled = [], [], False
-    for r in np.roots(np.asarray(den, float)):
-        if r.imag < -1e-12 * abs(r):
-            continue
-        wn = abs(r)
-        if r.imag > 1e-12 * wn and wn > 0:
-            z = -r.real / wn
-            if z < zeta_light and not lo <= wn <= hi:
-                near = [q for q in zeros if q.imag > 1e-12 * abs(q) and abs(abs(q) / wn - 1) < 0.2]
-                if near:
-                    q = min(near, key=lambda q: abs(abs(q) - wn))
-                    zeros = [x for x in zeros if not (np.isclose(x, q) or np.isclose(x, np.conj(q)))]
-                    cancelled = True
-                else:
-                    modes.append((float(wn), float(max(z, 1e-3))))
-                continue
-            keep += [r, np.conj(r)]
-        else:
-            keep.append(r)
-    den_red = np.real(np.poly(keep)) if keep else np.array([1.0])
-    den_red = den_red / den_red[-1]
-    if cancelled:       # G(0) = 1 kept: the pair's static gain goes with it
-        num = np.real(np.poly(zeros)) if zeros else np.array([1.0])
-        num = num / num[-1]
-    return num, den_red, modes, cancelled
-
-
-def cancel_slow_pairs(num, den, band, ratio: float = 1.5):
-    """G with the pole-zero pairs below ``band`` that nearly cancel taken out: ``(num, den, pairs)``,
-    both normalised to 1 at ``s = 0``, ``pairs`` the ``(pole, zero)`` frequencies removed.
-
-    A pole and a zero both below the lowest sine frequency, within ``ratio`` of each other, act on
-    the band as a constant gain step (``|z/p|``) and a phase of a few degrees: the sines cannot
-    place them, and with ``G(0) = 1`` they only make the static gain differ from the band's. That
-    is an artefact of the rational fit to harmonics an effect has distorted (a clipping sensor on
-    the paper's plant gave a pair at 0.0024 and 0.0026 rad/s under a band from 0.02), and in the
-    time domain a creep over thousands of seconds that every experiment of the diagnosis shows;
-    the re-estimated h carries whatever gain the pair stood for."""
-    lo = float(min(band))
-    num = np.trim_zeros(np.asarray(num, float), "f")
-    den = np.trim_zeros(np.asarray(den, float), "f")
-    if num.size < 2 or den.size < 2 or num[-1] == 0 or den[-1] == 0:
-        return num, den, []
-    zeros, poles = list(np.roots(num)), list(np.roots(den))
-    pairs = []
-    for z in sorted([q for q in zeros if abs(q.imag) <= 1e-12 * abs(q) and 0 < abs(q) < lo], key=abs):
-        near = [p for p in poles if abs(p.imag) <= 1e-12 * abs(p) and 0 < abs(p) < lo
-                and max(abs(p), abs(z)) < ratio * min(abs(p), abs(z))]
-        if not near:
-            continue
-        p = min(near, key=lambda q: abs(np.log(abs(q) / abs(z))))
-        zeros.remove(z)
-        poles.remove(p)
-        pairs.append((float(abs(p)), float(abs(z))))
-    if not pairs:
-        return num, den, []
-    num = np.real(np.poly(zeros)) if zeros else np.array([1.0])
-    den = np.real(np.poly(poles)) if poles else np.array([1.0])
-    return num / num[-1], den / den[-1], pairs
-
-
-def mirror_rhp_zeros(num) -> tuple[np.ndarray, float]:
-    """The numerator with its zeros in the right half plane mirrored to ``-conj(z)``, scaled so that
-    its value at ``s = 0`` is kept (so ``|G(jw)|`` and ``G(0)`` are unchanged), and the group delay at
-    ``w = 0`` that those zeros gave, ``sum 2 Re(z) / |z|^2`` (0 when there were none)."""
-    num = np.trim_zeros(np.asarray(num, float), "f")
-    if num.size < 2 or num[-1] == 0:
-        return num, 0.0
-    z = np.roots(num)
-    rhp = z.real > 1e-9 * np.maximum(np.abs(z), 1.0)
-    if not np.any(rhp):
-        return num, 0.0
-    hint = float(np.sum(2 * z[rhp].real / np.abs(z[rhp]) ** 2))
-    new = np.real(np.poly(np.where(rhp, -np.conj(z), z)))
-    return new * (num[-1] / new[-1]), hint
 
 
 def bic_score(gap_before: float, gap_after: float, k: float, n_eff: float) -> float:
@@ -207,17 +122,15 @@ class EffectFitter:
     # the validation gap can tell apart
     JOINT_TOL = {"ftol": 1e-6, "xtol": 1e-6, "gtol": 1e-6}
     COARSE_STEP, FINE_STEP = 1e-2, 1e-3     # finite-difference steps, relative, on the unit box
-    # iterations of a joint fit (F, G, h and an effect; the baseline's own fit is not capped): the fits
-    # that end on their own take 15-45 on the blind rigs; one still crawling after 60 is in a misfit
-    # that no effect mends (curved borders on a paper-base rig with a 0.6 deadzone, 346x the floor,
-    # ran to 100 and more, two thirds of a 425 s diagnosis, for the same result)
+    # iterations of a joint fit (F, G, h and an effect; the baseline's own fit is not capped): fits
+    # that end on their own take 15-45; one still crawling after 60 is in a misfit no effect mends
     MAX_ITER = 60
     # the profile scan (:meth:`_scan`): effects with at most this many own parameters, this many
     # values along each over its range, and as many again across the best one's neighbouring cells
     # (a resolution of about 1/100 of the range)
     SCAN_MAX_PARAMS, SCAN_POINTS, SCAN_GAIN = 2, 15, 0.1
 
-    ZETA_LIGHT = E.ZETA_LIGHT       # a pole pair of G below this damping ratio is a lightly damped mode
+    ZETA_LIGHT = effect_models.ZETA_LIGHT       # a pole pair of G below this damping ratio is a lightly damped mode
 
     def __init__(self, sim_fit, y_fit, m_fit, sim_val, y_val, m_val, names_val, scale, sigma, kappa,
                  max_samples: int = 60000, refit_h: bool = False, refit_g: bool = False, band=None,
@@ -279,7 +192,7 @@ class EffectFitter:
         out = []
         for i in range(len(simw.inputs)):
             Phi = self._basis(simw.w[i] if eff is None else eff.pre(simw, theta, i))
-            if eff is not None and eff.post_linear and type(eff).post is not E.Effect.post:
+            if eff is not None and eff.post_linear and type(eff).post is not effect_models.Effect.post:
                 Phi = np.column_stack([eff.post(Phi[:, k], theta, simw.dt) for k in range(Phi.shape[1])])
             out.append(Phi)
         return out
@@ -363,7 +276,7 @@ class EffectFitter:
             dp += 1e-9
         return InputNonlinearity(F.type, F.slope_up, F.slope_down * np.exp(c), dp, dm)
 
-    def linear(self, m) -> "LinearBlock":
+    def linear(self, m):
         """G for the model parameters ``m`` (log factors on the free coefficients of num/den)."""
         from hwid.blocks.linear import LinearBlock
         num, den = self._g_num.copy(), self._g_den.copy()
@@ -528,7 +441,7 @@ class EffectFitter:
         return np.concatenate(parts)
 
     # ------------------------------------------------------------------------------------ fitting
-    def fit(self, eff: E.Effect) -> Candidate:
+    def fit(self, eff: effect_models.Effect) -> Candidate:
         if eff.disturbance:
             return self._fit_drift(eff)
         lo, hi = eff.bounds(self.scale)
@@ -653,7 +566,7 @@ class EffectFitter:
         except ValueError:
             return None
 
-    def _fit_drift(self, eff: E.Drift) -> Candidate:
+    def _fit_drift(self, eff: effect_models.Drift) -> Candidate:
         """The smoother's width by generalised cross-validation on the fit data."""
         best = None
         n = self.n_fit
@@ -716,7 +629,7 @@ def _lsq(A, b) -> np.ndarray:
     return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
-class _GSim(E.ModelSim):
+class _GSim(effect_models.ModelSim):
     """``base`` (a :class:`ModelSim`) with F and G replaced: ``v``, ``w`` and ``x`` computed on first
     use (an effect that re-simulates from ``u`` or ``v`` never needs the later ones)."""
 
@@ -736,7 +649,7 @@ class _GSim(E.ModelSim):
     @property
     def w(self):
         if self._w is None:
-            self._w = [E.simulate_linear(self.model.linear, v, self.dt) for v in self.v]
+            self._w = [effect_models.simulate_linear(self.model.linear, v, self.dt) for v in self.v]
         return self._w
 
     @property
@@ -744,14 +657,6 @@ class _GSim(E.ModelSim):
         if self._x is None:
             self._x = [self.model.output(w) for w in self.w]
         return self._x
-
-
-def has_outside_modes(G, band, zeta_light: float = E.ZETA_LIGHT) -> bool:
-    """Whether G has a lightly damped pole pair outside ``band`` (see :func:`split_modes`)."""
-    if band is None or len(G.den) < 3:
-        return False
-    _, _, modes, cancelled = split_modes(G.num, G.den, band, zeta_light)
-    return bool(modes or cancelled)
 
 
 def alternative_baseline(primary: list[Candidate], other: list[Candidate], gap_ref: float, sigma: float,
@@ -778,7 +683,7 @@ def alternative_baseline(primary: list[Candidate], other: list[Candidate], gap_r
     return rank(out)
 
 
-def fit_all(fitter: EffectFitter, effects: dict[str, E.Effect], echo=None) -> list[Candidate]:
+def fit_all(fitter: EffectFitter, effects: dict[str, effect_models.Effect], echo=None) -> list[Candidate]:
     """Fit every effect; return the candidates ranked (explained fraction, then score)."""
     out = []
     for name, eff in effects.items():

@@ -28,7 +28,6 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 from functools import lru_cache
-from pathlib import Path
 from typing import Any, Optional, Protocol, Sequence
 
 import numpy as np
@@ -39,7 +38,7 @@ from hwid import HwidError
 from hwid.blocks.static import polyval
 from hwid.identify.harmonics import HarmonicFit, HarmonicModel, fit_harmonics, period_sums, span_projector
 from hwid.identify.lm import lm
-from hwid.identify.result import LinearResult, plain
+from hwid.identify.result import LinearResult
 
 
 @njit(cache=True)

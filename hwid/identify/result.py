@@ -244,3 +244,35 @@ def model_from_stages(nl: NonlinearResult, lin: LinearResult, notes: list | None
     return HWModel(nl.input_nonlinearity(), LinearBlock(tuple(num.tolist()), tuple(den.tolist()),
                                                         float(par.get("delay", 0.0) or 0.0)),
                    PolynomialH(tuple(float(c) for c in np.asarray(nl.h_coefficients, float))))
+
+
+def format_summary(result: NonlinearResult) -> str:
+    """A readable summary of a stage-1 result (what ``hwid identify-nonlinear`` prints)."""
+    def pm(key):
+        v = getattr(result, key)
+        lo, hi = result.ci[key]
+        return f"{v:.6g}  [{lo:.6g}, {hi:.6g}]"
+    conf = result.fit.get("confidence", 0.95)
+    lines = [f"input nonlinearity: {result.type}   ({result.evidence})",
+             f"normalised model (eqs. 4a-c), {100 * conf:g} % intervals; method {result.method}:",
+             "  slope_up   = 1 (normalisation)",
+             f"  slope_down = {pm('slope_down')}",
+             f"  d_plus     = {pm('d_plus')}",
+             f"  d_minus    = {pm('d_minus')}",
+             f"  h degree p = {result.degree}" + ("" if "chi2" not in result.fit else
+                                                  f"   (joint chi2 = {result.fit['chi2']:.4g} for {result.fit['dof']} dof)"),
+             "  h coefficients (ascending powers):"]
+    for i, (c, (lo, hi)) in enumerate(zip(result.h_coefficients, result.ci["h_coefficients"])):
+        if i:
+            lines.append(f"    c{i} = {c:.6g}  [{lo:.6g}, {hi:.6g}]")
+    if result.type == "backlash":
+        lines.append(f"  horizontal paths: j_a = {result.flat_up}, j_d = {result.flat_down}")
+    else:
+        lines.append("  horizontal paths: none (Backlash-Inverse, Remark 1.4): j_a = j_d = 0")
+    lines.append(f"  w range identified: [{result.w_range[0]:.4g}, {result.w_range[1]:.4g}]")
+    n_up = int(result.fit.get("n_up", len(result.levels)))
+    lines.append("  steady states (eq. 9):   j       U_j       X_hat_j         se")
+    for j, (u, x, s) in enumerate(zip(result.levels, result.X_hat, result.X_hat_se), start=1):
+        tag = "up  " if j <= n_up else "down"
+        lines.append(f"    {tag:>20} {j:3d}  {u:+8.4f}  {x:+12.6f}  {s:9.2e}")
+    return "\n".join(lines)

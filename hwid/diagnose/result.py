@@ -1,0 +1,37 @@
+"""The diagnosis's result as plain frozen data; ``to_dict()`` is the fixed JSON of ``hwid diagnose``."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class DiagnosisResult:
+    """What ``hwid diagnose`` found (the JSON keys are a fixed interface).
+
+    ``verdict``: ``{"effect", "block", "explained_fraction"}``; ``gap_before``/``gap_after``: RMS gap
+    on the validation experiments without and with the verdict's effect; ``noise_floor``: the noise
+    RMS from the repeats; ``gap_model_refit``: the gap with h (and F, G) re-estimated; ``where``: per
+    experiment, region, frequency, trend and repeatability; ``candidates``: every catalogue effect
+    fitted and scored, best first; ``test``, ``noise``, ``model``, ``design``, ``cost``: how the
+    verdict was reached and what it cost."""
+
+    verdict: dict
+    gap_before: float
+    gap_after: float
+    noise_floor: float
+    gap_model_refit: float
+    model_refit: dict | None
+    where: dict
+    candidates: list
+    test: dict
+    noise: dict
+    model: dict
+    design: dict
+    cost: dict
+
+    def to_dict(self) -> dict:
+        return {"verdict": self.verdict, "gap_before": self.gap_before, "gap_after": self.gap_after,
+                "noise_floor": self.noise_floor, "gap_model_refit": self.gap_model_refit,
+                "model_refit": self.model_refit, "where": self.where, "candidates": self.candidates,
+                "test": self.test, "noise": self.noise, "model": self.model, "design": self.design,
+                "cost": self.cost}

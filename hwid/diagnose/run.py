@@ -1,0 +1,376 @@
+"""``diagnose()`` as its steps: the sim side, the validation experiments on the plant, the noise floor
+and the gap test, the effects fitted and ranked, the second test, where the gap lies, the result.
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hwid import HwidError, protocols
+from hwid.diagnose import experiments, gap, rank
+from hwid.diagnose.baseline import has_outside_modes
+from hwid.diagnose.effects import BLOCK, CATALOGUE, ModelSim, Scale, catalogue
+from hwid.diagnose.result import DiagnosisResult
+from hwid.diagnose.sim_side import load_model
+from hwid.plant import make_plant
+from hwid.results import write_diagnosis, write_json
+
+#: The gap test's smallest mean-square excess that counts for an identified model (1.1 for a
+#: trusted simulator, :func:`hwid.diagnose.gap.gap_test`): an identified model carries its own
+#: error, up to 1.12x the floor; smaller gaps that an effect explains are still named by the second
+#: test (:func:`second_test`).
+ID_MIN_RATIO = 1.25
+
+
+@dataclass
+class Validation:
+    """The diagnosis's experiments as run on the plant, and the model simulated on them."""
+
+    design: experiments.Design
+    exps: list
+    records: list
+    fit_idx: list
+    val_idx: list
+    sim_fit: ModelSim
+    sim_val: ModelSim
+    scale: Scale
+    rig_seconds: float
+    seconds_rig: float
+
+    @property
+    def y_val(self) -> list:
+        return [self.records[i].y for i in self.val_idx]
+
+    @property
+    def m_val(self) -> list:
+        return [self.exps[i].mask for i in self.val_idx]
+
+
+def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None) -> dict:
+    """Diagnose the gap between the plant of ``cfg`` and a model; write ``OUT/diagnosis.h5`` and the
+    JSON summary (``json_path``, default ``OUT/diagnosis.json``); return the summary
+    (:meth:`DiagnosisResult.to_dict`).
+
+    Parameters
+    ----------
+    cfg : hwid.config.Config
+    out_dir : path
+        Output directory (``rig_journal/`` for resuming, ``diagnosis.h5``, ``diagnosis.json``).
+    model : path or None
+        The sim side (YAML plant, ``hwid run`` directory), or None to identify it first.
+    effects : sequence of str, optional
+        Catalogue subset to try (default: all).
+    """
+    t_start = time.perf_counter()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    plant = make_plant(cfg, journal_dir=out / "rig_journal")
+    calls_start = plant.calls
+    sim_model, origin = load_model(model, cfg, plant, out, echo)
+    calls_identified = plant.calls
+    seconds_model = time.perf_counter() - t_start
+    identified = origin.get("source") == "identified"
+
+    val = run_validation(cfg, plant, sim_model, origin, identified, echo)
+    calls_all = plant.calls
+    t0 = time.perf_counter()
+    floor, pairs = noise_floor(val)
+    res_before = [y - x for y, x in zip(val.y_val, val.sim_val.x)]
+    gap_before = gap.gap(res_before, val.m_val)
+    n_val = int(sum(m.sum() for m in val.m_val))
+    fitter = rank.EffectFitter(val.sim_fit, [val.records[i].y for i in val.fit_idx],
+                               [val.exps[i].mask for i in val.fit_idx], val.sim_val, val.y_val, val.m_val,
+                               [val.exps[i].name for i in val.val_idx], val.scale, floor.sigma, floor.kappa,
+                               refit_h=identified, refit_g=identified,
+                               band=_sine_band(cfg) if identified else None)
+    gap_ref = fitter.gap_ref
+    id_err = None
+    if identified:
+        id_err = identification_error(sim_model, origin.pop("records", []), val.design.dt, val.design.settle_s,
+                                      floor.sigma)
+        echo(f"identification error: gap {id_err['gap']:.4g} on its own records, excess {id_err['excess']:.4g}")
+    test = gap.gap_test(gap_ref, n_val, floor, min_ratio=ID_MIN_RATIO if identified else 1.1)
+    _echo_baseline(fitter, gap_before, gap_ref, floor, test, echo)
+    cands, gap_ref, test = fit_effects(fitter, sim_model, val, floor, gap_ref, test, n_val, identified, effects, echo)
+    additive = gap.drift_is_additive(pairs, [0.5 * (np.asarray(a, float) + np.asarray(b, float)) for a, b, _ in pairs],
+                                     max(int(round(val.design.settle_s / (2 * val.design.dt))), 5), floor.sigma)
+    drift_ok = bool(floor.slow_z > 10 and additive["additive"])
+    if not drift_ok:    # drift listed last: the plant repeats itself, or what changes is not additive
+        cands = [c for c in cands if c.effect != "drift"] + [c for c in cands if c.effect == "drift"]
+    by_effect = None
+    if identified and not test.significant:
+        cands, by_effect = second_test(cands, gap_ref, floor, drift_ok, fitter.n_eff)
+        if by_effect is not None and by_effect["significant"]:
+            test = dataclasses.replace(test, significant=True)
+    verdict = rank.verdict(cands, test.significant, drift_ok)
+    seconds_analysis = time.perf_counter() - t0
+
+    result = _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, test, additive, drift_ok,
+                     fitter, id_err, by_effect, sim_model, origin,
+                     {"plant_calls_identification": calls_identified - calls_start,
+                      "plant_calls_validation": calls_all - calls_identified,
+                      "plant_calls_reused": plant.reused,
+                      "rig_seconds_validation": val.rig_seconds,
+                      "rig_seconds_identification": _identification_rig_seconds(cfg, origin),
+                      "seconds_model": seconds_model, "seconds_rig_validation": val.seconds_rig,
+                      "seconds_analysis": seconds_analysis})
+    summary = result.to_dict()
+    summary["cost"]["seconds_total"] = time.perf_counter() - t_start
+    _write(out / "diagnosis.h5", cfg, summary, val, result_after(verdict, val, res_before))
+    write_json(Path(json_path) if json_path else out / "diagnosis.json", summary)
+    verdict_name, explained = summary["verdict"]["effect"], summary["verdict"]["explained_fraction"]
+    echo(f"verdict: {verdict_name} (block {summary['verdict']['block']}, explained {explained:.2f}); "
+         f"gap {summary['gap_before']:.4g} -> {summary['gap_after']:.4g}, noise floor {floor.sigma:.4g}")
+    return summary
+
+
+# ------------------------------------------------------------------------------------------ steps
+
+def run_validation(cfg, plant, sim_model, origin, identified: bool, echo) -> Validation:
+    """Design the diagnosis's experiments, run them on the plant (journalled), and simulate the
+    model on them, each from where the plant's input was left before it (a rate-limited actuator
+    carries over)."""
+    design = experiments.design_from(cfg, sim_model, origin if identified else None)
+    exps = experiments.design(cfg, sim_model, design)
+    rig_seconds = sum(e.n for e in exps) * design.dt
+    echo(f"running {len(exps)} validation experiments ({rig_seconds:.0f} rig-seconds)")
+    t0 = time.perf_counter()
+    records = experiments.run(plant, exps)
+    seconds_rig = time.perf_counter() - t0
+    fit_idx = [i for i, e in enumerate(exps) if e.role == "fit"]
+    val_idx = [i for i, e in enumerate(exps) if e.role == "validation"]
+    # the input the plant held when each experiment began (they run in this order, after the
+    # identification's records when the model was identified here): the last moves and hold
+    keep = max(int(round(4 * design.settle_s / design.dt)), 1)
+    ids = [np.asarray(r.u, float) for r in origin.get("records", []) if np.size(getattr(r, "u", None))]
+    u_before = [ids[-1][-keep:] if ids else None] + [e.u[-keep:] for e in exps[:-1]]
+    sim_fit = ModelSim(sim_model, design.dt, [exps[i].u for i in fit_idx], [u_before[i] for i in fit_idx])
+    sim_val = ModelSim(sim_model, design.dt, [exps[i].u for i in val_idx], [u_before[i] for i in val_idx])
+    scale = _scale(design, exps, sim_fit, sim_val, records)
+    return Validation(design, exps, records, fit_idx, val_idx, sim_fit, sim_val, scale, rig_seconds, seconds_rig)
+
+
+def noise_floor(val: Validation):
+    """The noise floor from the repeated experiments, and the repeat pairs ``(y, y_repeat, mask)``."""
+    by_name = {e.name: (e, r) for e, r in zip(val.exps, val.records)}
+    pairs = [(r.y, by_name[e.repeat_of][1].y, e.mask) for e, r in zip(val.exps, val.records) if e.repeat_of]
+    floor = gap.noise_floor(pairs, int(round(2 * val.design.settle_s / val.design.dt)), val.scale.y_obs_width)
+    return floor, pairs
+
+
+def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val, identified, effects, echo):
+    """Every catalogue effect (or the ``effects`` subset) fitted and scored; for an identified G with
+    a lightly damped mode outside the band, also from the baseline without it, each effect measured
+    against the better baseline alone. Returns ``(candidates, gap_ref, test)``."""
+    available = catalogue(val.scale)
+    if effects is not None:
+        unknown = [e for e in effects if e not in available]
+        if unknown:
+            raise HwidError(f"unknown effect(s) {', '.join(unknown)}; the catalogue is {', '.join(CATALOGUE)}")
+        available = {k: v for k, v in available.items() if k in effects}
+    cands = rank.fit_all(fitter, available, echo=echo)
+    if identified and has_outside_modes(sim_model.linear, fitter.band):
+        alternative = rank.EffectFitter(val.sim_fit, fitter.yf, fitter.mf, val.sim_val, val.y_val, val.m_val,
+                                        fitter.names_val, val.scale, floor.sigma, floor.kappa, refit_h=True,
+                                        refit_g=True, band=fitter.band, strip_identified=True)
+        echo(f"the identified G has a lightly damped mode outside the band: every effect also fitted "
+             f"with it taken out before the refit (that baseline alone: {alternative.gap_ref:.4g})")
+        # an effect fitted on the other baseline is not credited with what the switch removes by itself
+        if alternative.gap_ref < gap_ref:
+            gap_ref = alternative.gap_ref
+            test = gap.gap_test(gap_ref, n_val, floor, min_ratio=ID_MIN_RATIO)
+        cands = rank.alternative_baseline(cands, rank.fit_all(alternative, available, echo=echo), gap_ref,
+                                          floor.sigma, fitter.n_eff)
+    return cands, gap_ref, test
+
+
+def second_test(cands, gap_ref, floor, drift_ok: bool, n_eff: float):
+    """The second test for an identified model whose refit comes within a few per cent of the floor:
+    the likelihood ratio of the best eligible candidate against the refit model on validation data
+    the fit never saw (significant at 5 sigma, chi^2_1 > 25, with a positive BIC score and at least
+    half the gap explained).
+
+    No model fitted elsewhere removes noise from validation data, so the smallest gap a candidate
+    leaves bounds the noise from above: below the floor from the repeats (which carry whatever the
+    plant does not repeat exactly) the excess is measured down to it (:func:`rank.refloor`).
+    Returns ``(candidates, by_effect)``."""
+    cands, bound = rank.refloor(cands, gap_ref, floor.sigma, drift_ok)
+    best = next((c for c in cands if c.effect != "drift" or drift_ok), None)
+    if best is None:
+        return cands, None
+    ratio = float(best.score + best.k * np.log(n_eff))
+    return cands, {"effect": best.effect, "likelihood_ratio": ratio, "score": best.score, "noise_bound": bound,
+                   "significant": bool(best.explained_fraction >= 0.5 and best.score > 0 and ratio > 25.0)}
+
+
+def identification_error(model, records, dt: float, settle_s: float, sigma: float) -> dict:
+    """How far the identified model is from the plant on the experiments it was identified from.
+
+    Each record is simulated from its own input; the first 1.5 settling times and the first fifth of
+    the record (where the rig's state before the record still matters) are skipped. ``excess`` is
+    the RMS above the noise floor ``sigma``. It is reported, not used as a floor: those records carry
+    whatever effect the plant has, which the identification could not fit either."""
+    residuals = []
+    for r in records:
+        u = np.asarray(r.u, float)
+        y = np.asarray(r.y, float)
+        if u.size < 10 or y.size != u.size:
+            continue
+        x = ModelSim(model, dt, [u]).x[0]
+        k0 = max(int(round(1.5 * settle_s / dt)), u.size // 5)
+        if k0 < u.size - 10:
+            residuals.append(y[k0:] - x[k0:])
+    if not residuals:
+        return {"gap": 0.0, "excess": 0.0, "records": 0}
+    rms = float(np.sqrt(np.mean(np.concatenate(residuals) ** 2)))
+    return {"gap": rms, "excess": float(np.sqrt(max(rms * rms - sigma * sigma, 0.0))), "records": len(residuals)}
+
+
+def where_block(verdict_effect, cands, floor, regions, drift_ok=False) -> str:
+    """The block the gap is attributed to: the verdict's; for ``unexplained``, ``noise`` when the
+    plant does not repeat itself (not a fixed map from u to y), else the block of the best partial
+    explanation, else where the excess lies (levels: output; dynamics only: linear)."""
+    if verdict_effect == "none":
+        return "none"
+    if verdict_effect in BLOCK:
+        return BLOCK[verdict_effect]
+    if floor.slow_z > 10:
+        return "noise"
+    eligible = [c for c in cands if c.effect != "drift" or drift_ok]
+    best = eligible[0] if eligible else None
+    if best is not None and best.explained_fraction >= 0.2:
+        return best.block
+    levels = regions.get("levels", {}).get("gap_over_noise", 1.0)
+    dynamic = max(regions.get(k, {}).get("gap_over_noise", 1.0) for k in ("dynamic", "transients", "near reversals"))
+    return "linear" if levels < 1.2 and dynamic > 1.5 else "output" if levels >= 1.2 else "input"
+
+
+def result_after(verdict, val: Validation, res_before) -> list:
+    """The validation residuals with the verdict's effect added (the residuals before, without one)."""
+    if isinstance(verdict, rank.Candidate):
+        return [y - x for y, x in zip(val.y_val, verdict.predictions)]
+    return res_before
+
+
+# ----------------------------------------------------------------------------------- the result
+
+def _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, test, additive, drift_ok, fitter,
+            id_err, by_effect, sim_model, origin, cost) -> DiagnosisResult:
+    if isinstance(verdict, rank.Candidate):
+        name, explained, gap_after = verdict.effect, verdict.explained_fraction, verdict.gap_after
+    else:
+        name, explained, gap_after = verdict, 0.0, gap_before
+    res_after = result_after(verdict, val, res_before)
+    val_exps = [val.exps[i] for i in val.val_idx]
+    regions_before = gap.per_region([r[e.mask] for r, e in zip(res_before, val_exps)],
+                                    [e.region[e.mask] for e in val_exps], floor.sigma)
+    where = {
+        "experiments": _per_experiment(val_exps, res_before, res_after, floor.sigma),
+        "region": gap.main_region(regions_before) if test.significant else "nowhere (gap is noise)",
+        "frequencies": gap.frequencies(val_exps, res_before, floor, val.design.dt) if test.significant else [],
+        "trend": "none (gap is noise)",
+        "regions": regions_before,
+        "repeatability": {"slow_rms": floor.slow_rms, "slow_z": floor.slow_z, "repeats_differ": bool(floor.slow_z > 10),
+                          "difference_follows_output": additive["output_share"],
+                          "fast_difference_follows_output": additive["fast_share"], "additive": additive["additive"]},
+    }
+    if test.significant:
+        trend = gap.trend(val_exps, res_before, floor.sigma, val.design.dt)
+        where["trend"], where["trend_families"] = trend["trend"], trend["families"]
+    design = val.design
+    return DiagnosisResult(
+        verdict={"effect": name, "block": where_block(name, cands, floor, regions_before, drift_ok),
+                 "explained_fraction": float(explained)},
+        gap_before=float(gap_before), gap_after=float(gap_after), noise_floor=float(floor.sigma),
+        gap_model_refit=float(gap_ref),
+        model_refit=({**fitter.model_dict(fitter.g_p),
+                      "modes_taken_out": [{"omega_n": w, "zeta": z} for w, z in fitter.modes],
+                      "excess_phase_taken_out_s": float(fitter.delay_hint),
+                      "slow_pairs_taken_out": [{"pole": p, "zero": z} for p, z in fitter.cancelled_pairs]}
+                     if fitter.refit_g else None),
+        where=where,
+        candidates=[{**c.to_dict(), "eligible": bool(c.effect != "drift" or drift_ok)} for c in cands],
+        test={**test.to_dict(), "identification_error": id_err, "by_effect": by_effect},
+        noise=floor.to_dict(),
+        model={**origin, **sim_model.to_dict()},
+        design={"settle_s": design.settle_s, "omega_c": design.omega_c, "u_range": [design.u_lo, design.u_hi],
+                "amplitude": design.amplitude, "experiments": [e.name for e in val.exps]},
+        cost=dict(cost))
+
+
+def _echo_baseline(fitter, gap_before, gap_ref, floor, test, echo) -> None:
+    """Say what the baseline refit took out of G and what the gap test found."""
+    if fitter.delay_hint > 0:
+        echo(f"the refit G had zeros in the right half plane (excess phase, as a delay of {fitter.delay_hint:.3g} s "
+             "gives): mirrored into the left half plane in the baseline, left to the time_delay effect")
+    for pole, zero in fitter.cancelled_pairs:
+        echo(f"G had a pole at {pole:.3g} rad/s and a zero at {zero:.3g} rad/s below the sine band that nearly cancel "
+             "(a gain step the sines cannot place): taken out of the baseline")
+    for omega_n, zeta in fitter.modes:
+        echo(f"the refit G has a lightly damped mode outside the identified band (omega_n = {omega_n:.4g} rad/s, "
+             f"zeta = {zeta:.3g}): taken out of the baseline, left to the resonance effect")
+    refit = f" ({'h, F and G' if fitter.refit_g else 'h'} re-estimated: {gap_ref:.4g})" if fitter.refit_h else ""
+    echo(f"gap before {gap_before:.4g}{refit}, noise floor {floor.sigma:.4g} (power ratio {test.ratio:.3g}, "
+         f"z {test.z:.1f}): {'more than noise' if test.significant else 'consistent with noise'}")
+
+
+def _scale(design, exps, sim_fit, sim_val, records) -> Scale:
+    """The sizes the effects' bounds and starts are scaled from: input, model output and gear ranges,
+    the settling time and bandwidth, the longest experiment, the measured output's range."""
+    us = np.concatenate([e.u for e in exps])
+    xs = np.concatenate(list(sim_fit.x) + list(sim_val.x))
+    vs = np.concatenate(list(sim_fit.v) + list(sim_val.v))
+    ys = np.concatenate([np.asarray(r.y, float)[e.mask] for e, r in zip(exps, records)]) if records else xs
+    return Scale(design.dt, float(us.min()), float(us.max()), float(xs.min()), float(xs.max()),
+                 float(np.max(np.abs(vs))), design.settle_s, design.omega_c, float(max(e.n for e in exps) * design.dt),
+                 float(ys.min()), float(ys.max()))
+
+
+def _sine_band(cfg):
+    """``(omega_min, omega_max)`` of the sines that identified G (stage 2), rad/s."""
+    sine = cfg.protocols.sine
+    if sine is None or not sine.frequencies:
+        return None
+    return float(min(sine.frequencies)), float(max(sine.frequencies))
+
+
+def _identification_rig_seconds(cfg, origin) -> float:
+    if origin.get("source") != "identified":
+        return 0.0
+    dt = cfg.sampling.dt
+    seconds = sum(st.u.size for st in protocols.staircases(cfg)) * dt
+    seconds += sum(sn.z.size for sn in protocols.sines(cfg)) * dt
+    return float(seconds)
+
+
+def _per_experiment(exps, res_before, res_after, sigma) -> list[dict]:
+    out = []
+    for e, before, after in zip(exps, res_before, res_after):
+        gap_b, gap_a = _rms(before[e.mask]), _rms(after[e.mask])
+        out.append({"name": e.name, "kind": e.kind, "gap_before": gap_b, "gap_after": gap_a,
+                    "before_over_noise": gap_b / sigma, "after_over_noise": gap_a / sigma, **e.variable})
+    out.sort(key=lambda x: -x["before_over_noise"])
+    return out
+
+
+def _rms(x) -> float:
+    x = np.asarray(x, float)
+    return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
+
+
+def _write(path, cfg, summary, val: Validation, res_after) -> None:
+    """``diagnosis.h5`` through :func:`hwid.results.write_diagnosis`: each experiment's input, the
+    plant's output, the model's (before) and, for validation experiments, the model's with the
+    leading effect added (after)."""
+    x_model = {i: val.sim_fit.x[j] for j, i in enumerate(val.fit_idx)}
+    x_model.update({i: val.sim_val.x[j] for j, i in enumerate(val.val_idx)})
+    after = {i: val.records[i].y - res_after[j] for j, i in enumerate(val.val_idx)}
+    rows = [{"name": e.name, "u": r.u, "y": r.y, "y_model": x_model[i], "mask": e.mask, "region": e.region,
+             "z": e.z, "y_after": after.get(i), "dt": r.dt, "kind": e.kind, "role": e.role,
+             "repeat_of": e.repeat_of, "variable": e.variable}
+            for i, (e, r) in enumerate(zip(val.exps, val.records))]
+    write_diagnosis(path, cfg, summary, rows)

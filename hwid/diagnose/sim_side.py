@@ -1,0 +1,95 @@
+"""The diagnosis's sim side: the model the plant is compared with.
+
+Given by the user (``--model``: a plant YAML of kind ``hammerstein_wiener``, or a directory written
+by ``hwid run``), or identified from the plant itself with the config's protocols (stage 1, stage 2
+and the parametric G) when none is given. ``hwid compare`` reads its MODEL the same way.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from hwid import HwidError, config
+from hwid.identify.result import model_from_stages
+from hwid.model import HWModel, from_config
+from hwid.results import read_linear, read_nonlinear, write_linear, write_nonlinear
+
+
+def model_from_yaml(path: Path) -> HWModel:
+    """The (un-normalised) model of a plant YAML, or of a config's ``plant``."""
+    try:
+        data = config.safe_yaml(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as err:
+        raise HwidError(f"--model {path}: cannot read it ({type(err).__name__})") from None
+    except yaml.YAMLError:
+        raise HwidError(f"--model {path}: malformed YAML") from None
+    if isinstance(data, dict) and "plant" in data:
+        data = data["plant"]
+    if not isinstance(data, dict):
+        raise HwidError(f"--model {path}: expected a plant (kind: hammerstein_wiener) or a config with one")
+    plant = config.parse_plant(data, f"--model {path}")
+    if plant.kind != "hammerstein_wiener":
+        raise HwidError(f"--model {path}: the model must be a plant of kind hammerstein_wiener, "
+                        f"not {plant.kind}")
+    return from_config(plant)
+
+
+def model_from_run(path: Path, echo=print) -> tuple[HWModel, dict]:
+    """The normalised model of a ``hwid run`` directory (stage 1 and stage 2 results)."""
+    for name in ("nonlinear.h5", "linear.h5"):
+        if not (path / name).exists():
+            raise HwidError(f"--model {path}: no {name} in that directory (write one with 'hwid run')")
+    nonlinear = read_nonlinear(path / "nonlinear.h5")
+    notes: list = []
+    model = model_from_stages(nonlinear, read_linear(path / "linear.h5"), notes)
+    for note in notes:
+        echo(note)
+    return model, {"source": "results", "path": str(path), "w_range": [float(x) for x in nonlinear.w_range],
+                   "notes": notes}
+
+
+def identified_model(cfg, plant, out_dir=None, echo=print) -> tuple[HWModel, dict]:
+    """Identify the model from ``plant`` with the config's staircases and sines (both stages); the
+    results go to ``out_dir`` as ``nonlinear.h5`` and ``linear.h5``. The origin dict carries the
+    identification's records (``records``), which the diagnosis uses and then drops."""
+    from hwid.identify.linear import identify_linear
+    from hwid.identify.nonlinear import identify_nonlinear
+    if cfg.protocols.staircase is None or cfg.protocols.sine is None:
+        raise HwidError(f"{cfg.source_path}: without --model, diagnose identifies the model first and "
+                        f"needs both protocols.staircase and protocols.sine")
+    t0 = time.perf_counter()
+    nonlinear, nonlinear_records = identify_nonlinear(cfg, plant=plant)
+    linear, linear_records = identify_linear(cfg, nonlinear, plant=plant)
+    if out_dir is not None:
+        write_nonlinear(Path(out_dir) / "nonlinear.h5", cfg, nonlinear, nonlinear_records)
+        write_linear(Path(out_dir) / "linear.h5", cfg, linear, linear_records)
+    echo(f"identified the model ({time.perf_counter() - t0:.1f} s): {nonlinear.type}, d+ = {nonlinear.d_plus:.4g}, "
+         f"d- = {nonlinear.d_minus:.4g}, S^d = {nonlinear.slope_down:.4g}, h degree {nonlinear.degree}, "
+         f"G = {list(np.round(linear.parametric.get('num', []), 4))}/{list(np.round(linear.parametric.get('den', []), 4))}")
+    levels = list(cfg.protocols.staircase.levels_up) + list(cfg.protocols.staircase.levels_down)
+    notes: list = []
+    model = model_from_stages(nonlinear, linear, notes)
+    for note in notes:
+        echo(note)
+    records = [r for r in list(nonlinear_records) + list(linear_records) if r.y is not None]
+    return model, {"source": "identified", "w_range": [float(x) for x in nonlinear.w_range], "notes": notes,
+                   "u_range": [float(min(levels)), float(max(levels))], "records": records}
+
+
+def load_model(spec, cfg=None, plant=None, out_dir=None, echo=print) -> tuple[HWModel, dict]:
+    """The sim-side model and a description of where it came from.
+
+    ``spec``: a YAML file, a ``hwid run`` directory, or None (identify it from ``plant`` with the
+    config's protocols, :func:`identified_model`).
+    """
+    if spec is None:
+        return identified_model(cfg, plant, out_dir, echo)
+    path = Path(spec)
+    if path.is_dir():
+        return model_from_run(path, echo)
+    if not path.exists():
+        raise HwidError(f"--model {path}: no such file or directory")
+    return model_from_yaml(path), {"source": "yaml", "path": str(path)}
