@@ -58,3 +58,13 @@ def test_no_parametric_g_falls_back_to_a_first_order_fit():
     m = model_from_stages(nl, lin, notes)
     assert m.linear.den[0] == pytest.approx(2.0, rel=1e-4) and m.linear.num == (1.0,)
     assert len(notes) == 1 and "no stable rational model" in notes[0]
+
+
+def test_normalisation_backlash_inverse_keeps_steady_output():
+    """eq. (4a) extended to the Backlash-Inverse: the normalised model has the same steady outputs."""
+    m = HWModel(InputNonlinearity("backlash_inverse", 2.0, 1.5, 0.3, -0.4), LinearBlock((3.0,), (1.0, 2.0)),
+                PolynomialH((0, 1.0, 0.3, 0.2)))
+    n = m.normalised()
+    lv = np.array([1.0, -1.0, -0.5, 0.0, 0.5, 1.0, 0.2, -0.7])
+    np.testing.assert_allclose(m.steady_output(lv, 0.0), n.steady_output(lv, 0.0 * m.input.scale), atol=1e-12)
+    assert n.input.slope_up == 1.0 and n.input.d_plus == pytest.approx(0.6) and n.linear.dc_gain == pytest.approx(1)

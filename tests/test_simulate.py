@@ -87,21 +87,3 @@ def test_cli_simulate_layout(tmp_path):
         np.testing.assert_allclose(f["truth/normalised/output_nonlinearity/polynomial"][()],
                                    [0, 0.5, 0, -3.36, 0, 6.4], atol=1e-12)   # eq. (30c)
     assert not (tmp_path / "o" / "simulation.h5.tmp").exists()
-
-
-def test_normalisation_backlash_inverse_keeps_steady_output():
-    cfg = config.loads("""
-name: binv
-sampling: {dt: 0.05}
-plant:
-  kind: hammerstein_wiener
-  input_nonlinearity: {type: backlash_inverse, slope_up: 2.0, slope_down: 1.5, d_plus: 0.3, d_minus: -0.4}
-  linear: {num: [3.0], den: [1.0, 2.0]}
-  output_nonlinearity: {polynomial: [0, 1.0, 0.3, 0.2]}
-protocols: {staircase: {levels_up: [-1, -0.5, 0, 0.5, 1], levels_down: [0.5, 0, -0.5, -1], hold: 5}}
-""")
-    m = from_config(cfg.plant)
-    n = m.normalised()
-    lv = np.array([1.0, -1.0, -0.5, 0.0, 0.5, 1.0, 0.2, -0.7])
-    np.testing.assert_allclose(m.steady_output(lv, 0.0), n.steady_output(lv, 0.0 * m.input.scale), atol=1e-12)
-    assert n.input.slope_up == 1.0 and n.input.d_plus == pytest.approx(0.6) and n.linear.dc_gain == pytest.approx(1)

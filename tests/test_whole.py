@@ -72,16 +72,6 @@ def test_whole_fit_recovers_the_model_from_random_levels():
     assert cmp.rms_over_floor < 1.1
 
 
-def test_whole_result_round_trips_through_whole_h5(tmp_path):
-    from hwid.results import read_whole, write_whole
-    cfg, truth = _plant()
-    fit = WholeModelFit(max_degree=2, structures=[Structure(1, 0)], types=("backlash",)).fit(
-        _records(truth, np.random.default_rng(3), 1))
-    path = write_whole(tmp_path / "whole.h5", cfg, fit.result_)
-    back = read_whole(path, cfg)
-    assert back == fit.result_
-
-
 def test_run_with_whole_enabled_is_not_worse_than_the_stages(tmp_path):
     """``hwid run`` with identification.whole.enabled: the whole fit starts from the stages, its
     estimates hold the truth, and its free-run error on the stages' records is no larger than the
