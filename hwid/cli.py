@@ -42,10 +42,14 @@ def check(config: Path = typer.Argument(..., help="Config YAML to validate.")):
     """Validate a config and exit (0 if it is usable, 2 with one line if not)."""
     from hwid.config import load as load_config
     cfg = load_config(config)
+    detail = ""
     if cfg.plant.kind == "external":
         from hwid.plant import load_external
         load_external(cfg)   # imports the named callable (only that) and checks its signature
-    typer.echo(f"{config}: OK ({cfg.name}, plant {cfg.plant.kind}, config sha256 {cfg.sha256[:12]})")
+    elif cfg.plant.kind == "recorded":
+        from hwid.recorded import describe, load_records
+        detail = "; " + describe(load_records(cfg))      # reads every file, writes nothing
+    typer.echo(f"{config}: OK ({cfg.name}, plant {cfg.plant.kind}, config sha256 {cfg.sha256[:12]}){detail}")
 
 
 @app.command()

@@ -258,6 +258,9 @@ class ExternalPlant:
 def make_plant(cfg, seed: np.random.SeedSequence | int | None = None, journal_dir: str | Path | None = None):
     """The plant of ``cfg.plant``: simulated or external."""
     p = cfg.plant
+    if p.kind == "recorded":
+        raise HwidError(f"{cfg.source_path}: a recorded plant cannot run new experiments; its records are read "
+                        f"with 'hwid simulate' (and compared with 'hwid compare')")
     if p.kind == "external":
         return ExternalPlant(p.callable, cfg.sampling.dt, p.timeout,
                              RigJournal(journal_dir) if journal_dir is not None else None, fn=load_external(cfg))

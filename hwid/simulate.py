@@ -51,7 +51,11 @@ def run_protocols(cfg, plant=None, progress: bool | None = None):
 
 
 def simulate(cfg, out_dir: str | Path, progress: bool | None = None) -> Path:
-    """Write ``OUT/simulation.h5`` (layout in the README)."""
+    """Write ``OUT/simulation.h5`` (layout in the README): the protocols run on the plant, or a
+    recorded plant's records read, cleaned and resampled (:mod:`hwid.recorded`)."""
     out = Path(out_dir) / "simulation.h5"
+    if cfg.plant.kind == "recorded":
+        from hwid.recorded import load_records
+        return write_simulation(out, cfg, load_records(cfg), None)
     records = run_protocols(cfg, make_plant(cfg, journal_dir=Path(out_dir) / "rig_journal"), progress)
     return write_simulation(out, cfg, records, truth(cfg))

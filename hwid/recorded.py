@@ -1,0 +1,346 @@
+"""Recorded logs in: a user's files read, cleaned and put on the ``dt`` grid as hwid's ``Record``s.
+
+One reader per format behind :func:`read_columns` (nothing downstream knows which format a record
+came from): CSV by pandas (the delimiter sniffed, a header row, columns by name or 0-based index,
+ISO 8601 timestamps), HDF5 (dataset paths, under ``key`` when given), NPZ (array names), JSON (a
+2-D array under ``key``, default ``data``; columns by index).
+
+What is done to the data, and recorded in each ``Record``'s attributes (so in ``simulation.h5``,
+and listed by ``hwid report``):
+
+* leading and trailing rows without both signals are dropped;
+* a gap in time longer than ``3 dt`` splits the record (never bridged);
+* interior NaN runs of at most 2 samples are interpolated (counted); longer ones split the record;
+* uneven timestamps go onto the ``dt`` grid: the input by zero-order hold (a rig holds its
+  command), the output by linear interpolation; the jitter of the sampling interval is reported;
+* the output's resolution (its quantum, e.g. one encoder count) is given or detected;
+* ``role: auto`` finds the piecewise-constant stretches of the input (levels, with the direction
+  each was approached from).
+"""
+from __future__ import annotations
+
+import csv
+import difflib
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from hwid import HwidError
+from hwid.plant import Record
+
+#: a gap in the timestamps longer than this many sample times splits a record
+GAP_DT = 3.0
+#: interior NaN runs up to this many samples are interpolated; longer ones split the record
+MAX_NAN_RUN = 2
+#: pieces shorter than this many samples after splitting are dropped (counted)
+MIN_SAMPLES = 3
+#: a level: the input constant for at least this many samples
+MIN_LEVEL_SAMPLES = 3
+
+
+class RecordError(HwidError):
+    """A recorded file that cannot be read as the config says (one line, names file and column)."""
+
+
+# ----------------------------------------------------------------------------------- readers
+
+def read_columns(path: Path, columns: list, key: str | None = None) -> tuple[list[np.ndarray], int]:
+    """The ``columns`` (names or 0-based indices) of the file at ``path`` as arrays (float, or
+    ``datetime64`` for an ISO time column), and the number of data rows."""
+    if not path.exists():
+        raise RecordError(f"{path}: no such file")
+    suffix = path.suffix.lower()
+    if suffix in (".csv", ".tsv", ".txt"):
+        return _read_csv(path, columns)
+    if suffix in (".h5", ".hdf5"):
+        return _read_hdf5(path, columns, key)
+    if suffix == ".npz":
+        return _read_npz(path, columns)
+    if suffix == ".json":
+        return _read_json(path, columns, key or "data")
+    raise RecordError(f"{path}: cannot tell the format from the suffix '{suffix}' "
+                      "(use .csv, .tsv, .txt, .h5, .hdf5, .npz or .json)")
+
+
+def _pick(path: Path, names: list[str], column):
+    """The name of ``column`` (a name or an index) among ``names``, or a one-line error listing them."""
+    if isinstance(column, int):
+        if column >= len(names):
+            raise RecordError(f"{path}: column {column} does not exist (it has {len(names)} columns, 0-based)")
+        return names[column]
+    if column not in names:
+        close = difflib.get_close_matches(str(column), [str(n) for n in names], n=1, cutoff=0.5)
+        hint = f"; did you mean '{close[0]}'?" if close else ""
+        shown = ", ".join(repr(str(n)) for n in names[:12]) + (" ..." if len(names) > 12 else "")
+        raise RecordError(f"{path}: no column '{column}' (columns: {shown}){hint}")
+    return column
+
+
+def _read_csv(path: Path, columns: list):
+    import pandas as pd
+    with open(path, newline="", encoding="utf-8", errors="replace") as fh:
+        head = fh.read(8192)
+    if not head.strip():
+        raise RecordError(f"{path}: the file is empty")
+    try:
+        delimiter = csv.Sniffer().sniff(head, delimiters=",;\t| ").delimiter
+    except csv.Error:
+        delimiter = ","
+    try:
+        names = list(pd.read_csv(path, sep=delimiter, nrows=0).columns)
+        wanted = list(dict.fromkeys(_pick(path, names, c) for c in columns))
+        frame = pd.read_csv(path, sep=delimiter, usecols=wanted, dtype=str, engine="c", keep_default_na=True)
+    except RecordError:
+        raise
+    except (ValueError, pd.errors.ParserError, UnicodeDecodeError) as err:
+        raise RecordError(f"{path}: not a readable CSV file ({type(err).__name__}: {' '.join(str(err).split())[:120]})") from None
+    out = [_csv_column(path, frame, _pick(path, names, c)) for c in columns]
+    return out, len(frame)
+
+
+def _csv_column(path: Path, frame, name) -> np.ndarray:
+    """Numbers, or timestamps for a column of ISO 8601 text; a cell that is neither is an error
+    naming its row and column (empty cells become NaN)."""
+    import pandas as pd
+    text = frame[name]
+    numbers = pd.to_numeric(text, errors="coerce")
+    bad = numbers.isna() & text.notna() & (text.str.strip() != "")
+    if not bad.any():
+        return numbers.to_numpy(float)
+    if bad.mean() > 0.5:     # mostly text: timestamps
+        stamps = pd.to_datetime(text, format="ISO8601", utc=True, errors="coerce")
+        wrong = stamps.isna() & text.notna() & (text.str.strip() != "")
+        if not wrong.any():
+            return stamps.dt.tz_localize(None).to_numpy(dtype="datetime64[ns]")
+        bad = wrong
+    row = int(np.argmax(bad.to_numpy()))
+    raise RecordError(f"{path}: row {row + 1} (data row, 1-based), column '{name}': "
+                      f"'{text.iloc[row]}' is not a number")
+
+
+def _read_hdf5(path: Path, columns: list, key: str | None):
+    import h5py
+    try:
+        with h5py.File(path, "r") as f:
+            group = f[key] if key else f
+            names = [n for n, item in group.items() if isinstance(item, h5py.Dataset)]
+            out = [np.asarray(group[_pick(path, names, c)][()], float).ravel() for c in columns]
+    except (OSError, KeyError) as err:
+        raise RecordError(f"{path}: cannot be read as HDF5 ({type(err).__name__}: {err})") from None
+    return out, max(a.size for a in out)
+
+
+def _read_npz(path: Path, columns: list):
+    try:
+        with np.load(path) as f:
+            names = list(f.files)
+            out = [np.asarray(f[_pick(path, names, c)], float).ravel() for c in columns]
+    except (OSError, ValueError) as err:
+        raise RecordError(f"{path}: cannot be read as NPZ ({type(err).__name__})") from None
+    return out, max(a.size for a in out)
+
+
+def _read_json(path: Path, columns: list, key: str):
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        table = np.asarray(data[key], float)
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise RecordError(f"{path}: no 2-D numeric array under key '{key}' ({type(err).__name__})") from None
+    if table.ndim != 2:
+        raise RecordError(f"{path}: the array under key '{key}' is not 2-D (shape {table.shape})")
+    for c in columns:
+        if not isinstance(c, int) or c >= table.shape[1]:
+            raise RecordError(f"{path}: column {c!r}: JSON columns are 0-based indices below {table.shape[1]}")
+    return [table[:, c] for c in columns], table.shape[0]
+
+
+# -------------------------------------------------------------------------------- the records
+
+def sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def load_records(cfg) -> list[Record]:
+    """Every experiment of a recorded plant, read, cleaned and put on the ``dt`` grid."""
+    base = Path(cfg.source_path).parent if cfg.source_path not in ("", "<config>") else Path(".")
+    records: list[Record] = []
+    for index, exp in enumerate(cfg.plant.experiments):
+        records += load_experiment(exp, index, base, cfg.sampling.dt, cfg.plant.output_resolution)
+    names = [r.name for r in records]
+    if len(set(names)) != len(names):
+        for k, r in enumerate(records):
+            r.name = f"{r.name}_{k}"
+    return records
+
+
+def load_experiment(exp, index: int, base: Path, dt: float, resolution: float | None) -> list[Record]:
+    """One configured file as one or more records (split at gaps and long NaN runs)."""
+    path = (base / exp.file) if not Path(exp.file).is_absolute() else Path(exp.file)
+    where = f"plant.experiments[{index}] ({exp.file})"
+    columns = [exp.input.column, exp.output.column] + ([exp.time.column] if exp.time is not None else [])
+    arrays, n_rows = read_columns(path, columns, exp.key)
+    u_raw, y_raw = arrays[0], arrays[1]
+    u = exp.input.scale * u_raw + exp.input.offset
+    y = exp.output.scale * y_raw + exp.output.offset
+    t = _seconds(arrays[2], path, exp.time.column) if exp.time is not None else np.arange(u.size) * dt
+    present = np.isfinite(u) & np.isfinite(y) & np.isfinite(t)
+    if not present.any():
+        raise RecordError(f"{where}: the record is empty (no row holds both signals)")
+    first, last = int(np.argmax(present)), int(present.size - np.argmax(present[::-1]) - 1)
+    u, y, t, y_raw = u[first:last + 1], y[first:last + 1], t[first:last + 1], y_raw[first:last + 1]
+    _check_time(t, path, first)
+    t = t - t[0]
+    keep = np.ones(t.size, bool)
+    if exp.start is not None:
+        keep &= t >= exp.start
+    if exp.stop is not None:
+        keep &= t <= exp.stop
+    if keep.sum() < MIN_SAMPLES:
+        raise RecordError(f"{where}: fewer than {MIN_SAMPLES} samples between start and stop")
+    u, y, t, y_raw = u[keep], y[keep], t[keep], y_raw[keep]
+    quantum, quantum_source = _resolution(y_raw, exp.output.scale, resolution)
+    decisions = {"rows_read": int(n_rows), "rows_dropped_leading": first,
+                 "rows_dropped_trailing": int(n_rows - last - 1), "nan_interpolated": 0, "dropped_short_pieces": 0}
+    pieces = _split(t, u, y, dt, decisions)
+    if not pieces:
+        raise RecordError(f"{where}: no stretch of at least {MIN_SAMPLES} samples without a gap "
+                          f"longer than {GAP_DT:g} dt or a NaN run longer than {MAX_NAN_RUN}")
+    step = np.diff(t)
+    provenance = {"source_file": str(path), "source_sha256": sha256(path),
+                  "columns": json.dumps({"input": exp.input.column, "output": exp.output.column,
+                                         "time": None if exp.time is None else exp.time.column}),
+                  "input_scale": exp.input.scale, "input_offset": exp.input.offset,
+                  "output_scale": exp.output.scale, "output_offset": exp.output.offset,
+                  "start": -1.0 if exp.start is None else exp.start, "stop": -1.0 if exp.stop is None else exp.stop,
+                  "resampling": "input zero-order hold, output linear interpolation, onto t0 + k dt",
+                  "jitter_median_s": float(np.median(np.abs(step - dt))) if step.size else 0.0,
+                  "jitter_max_s": float(np.max(np.abs(step - dt))) if step.size else 0.0,
+                  "output_resolution": quantum if quantum is not None else 0.0,
+                  "output_resolution_source": quantum_source, "role": exp.role,
+                  "splits": len(pieces) - 1, **decisions}
+    stem = Path(exp.file).stem
+    records = []
+    for k, (tk, uk, yk) in enumerate(pieces):
+        u_grid, y_grid = resample(tk, uk, yk, dt)
+        name = stem if len(pieces) == 1 else f"{stem}_part{k + 1}"
+        attrs = {**provenance, "piece": k, "piece_start_s": float(tk[0])}
+        if exp.role in ("auto", "staircase"):
+            attrs["segments"] = json.dumps(level_segments(u_grid))
+        records.append(Record(name, dt, u_grid, y_grid, attrs=attrs))
+    return records
+
+
+def _seconds(column: np.ndarray, path: Path, name) -> np.ndarray:
+    if np.issubdtype(column.dtype, np.datetime64):
+        stamps = column.astype("datetime64[ns]")
+        valid = ~np.isnat(stamps)
+        origin = stamps[valid][0] if valid.any() else np.datetime64(0, "ns")
+        seconds = (stamps - origin).astype("timedelta64[ns]").astype(float) * 1e-9
+        seconds[~valid] = np.nan
+        return seconds
+    return np.asarray(column, float)
+
+
+def _check_time(t: np.ndarray, path: Path, offset: int) -> None:
+    """Timestamps must increase: one that repeats or goes back is named by its data row."""
+    step = np.diff(t)
+    bad = np.flatnonzero(~(step > 0) & np.isfinite(step))
+    if bad.size:
+        row = offset + int(bad[0]) + 2
+        what = "repeats" if step[bad[0]] == 0 else "goes backwards"
+        raise RecordError(f"{path}: row {row} (data row, 1-based): the timestamp {what} ({t[bad[0] + 1]:.6g} s after "
+                          f"{t[bad[0]]:.6g} s)")
+
+
+def _resolution(y_raw: np.ndarray, scale: float, given: float | None) -> tuple[float | None, str]:
+    """The output's quantum: given, or the smallest step of the raw output when every step is a
+    whole multiple of it (an encoder's count), in output units; else none."""
+    if given is not None:
+        return float(given), "given"
+    raw = y_raw[np.isfinite(y_raw)]
+    steps = np.abs(np.diff(raw))
+    steps = steps[steps > 0]
+    if steps.size < 3:
+        return None, "none"
+    q = float(steps.min())
+    if np.all(np.abs(steps / q - np.round(steps / q)) < 1e-6):
+        return q * abs(scale), "detected"
+    return None, "none"
+
+
+def _split(t, u, y, dt: float, decisions: dict) -> list[tuple]:
+    """Pieces without a gap longer than :data:`GAP_DT` ``dt`` or a NaN run longer than
+    :data:`MAX_NAN_RUN`; shorter NaN runs interpolated (counted in ``decisions``)."""
+    cuts = np.flatnonzero(np.diff(t) > GAP_DT * dt) + 1
+    pieces = []
+    for tk, uk, yk in zip(np.split(t, cuts), np.split(u, cuts), np.split(y, cuts)):
+        missing = ~(np.isfinite(uk) & np.isfinite(yk))
+        runs = _runs(missing)
+        long_runs = [(a, b) for a, b in runs if b - a > MAX_NAN_RUN]
+        for a, b in runs:
+            if b - a <= MAX_NAN_RUN:
+                decisions["nan_interpolated"] += b - a
+        ok = np.flatnonzero(~missing)
+        uk, yk = uk.copy(), yk.copy()
+        if ok.size:
+            for arr in (uk, yk):
+                bad = ~np.isfinite(arr)
+                arr[bad] = np.interp(tk[bad], tk[ok], arr[ok])
+        bounds = [0] + [x for a, b in long_runs for x in (a, b)] + [tk.size]
+        for a, b in zip(bounds[::2], bounds[1::2]):
+            if b - a >= MIN_SAMPLES:
+                pieces.append((tk[a:b], uk[a:b], yk[a:b]))
+            elif b > a:
+                decisions["dropped_short_pieces"] += 1
+    return pieces
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """``(start, stop)`` of each run of True in ``mask``."""
+    padded = np.concatenate([[False], mask, [False]]).astype(int)
+    edges = np.flatnonzero(np.diff(padded))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+
+
+def resample(t, u, y, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """``u`` (zero-order hold) and ``y`` (linear) on the grid ``t[0] + k dt``."""
+    n = int(np.floor((t[-1] - t[0]) / dt + 1e-9)) + 1
+    grid = t[0] + np.arange(n) * dt
+    held = np.clip(np.searchsorted(t, grid + 1e-9 * dt, side="right") - 1, 0, t.size - 1)
+    return u[held], np.interp(grid, t, y)
+
+
+def level_segments(u: np.ndarray) -> list[dict]:
+    """The piecewise-constant stretches of ``u`` (at least :data:`MIN_LEVEL_SAMPLES` equal samples):
+    ``{"kind": "level", "start", "stop", "value", "direction"}``, direction ``up`` or ``down`` from
+    the level before (``first`` for the first)."""
+    out: list[dict] = []
+    change = np.flatnonzero(np.diff(u) != 0) + 1
+    bounds = np.concatenate([[0], change, [u.size]])
+    previous = None
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if b - a < MIN_LEVEL_SAMPLES:
+            continue
+        value = float(u[a])
+        direction = "first" if previous is None else ("up" if value > previous else "down")
+        out.append({"kind": "level", "start": int(a), "stop": int(b), "value": value, "direction": direction})
+        previous = value
+    return out
+
+
+def describe(records: list[Record]) -> str:
+    """One line on what reading the records did (``hwid check``)."""
+    n = sum(r.u.size for r in records)
+    dropped = sum(int(r.attrs.get("rows_dropped_leading", 0)) + int(r.attrs.get("rows_dropped_trailing", 0))
+                  for r in records if r.attrs.get("piece", 0) == 0)
+    filled = sum(int(r.attrs.get("nan_interpolated", 0)) for r in records if r.attrs.get("piece", 0) == 0)
+    jitter = max(float(r.attrs.get("jitter_max_s", 0.0)) for r in records)
+    levels = sum(len(json.loads(r.attrs.get("segments", "[]"))) for r in records)
+    return (f"{len(records)} experiment(s), {n} samples on the grid; {dropped} empty row(s) dropped, "
+            f"{filled} sample(s) interpolated, jitter up to {jitter * 1e3:.3g} ms, {levels} level(s) found")
