@@ -441,3 +441,62 @@ def test_config_loader_is_a_safe_loader():
                     r"(?<![\w.])eval\(", r"(?<![\w.])exec\(", r"pickle\.loads?\(", r"allow_pickle\s*=\s*True"):
             offenders += [f"{src.relative_to(root)}: {m.group(0)}" for m in re.finditer(pat, text)]
     assert not offenders, offenders
+
+
+# ---------------------------------------------------------------- recorded logs (plant.kind: recorded)
+
+def _log(d, text, name="log.csv"):
+    path = d / name
+    path.write_text(text)
+    return path
+
+
+def _recorded(d, file, **exp):
+    import yaml
+    data = {"name": "rec", "sampling": {"dt": 0.1},
+            "plant": {"kind": "recorded", "experiments": [{"file": str(file), "input": {"column": "u"},
+                                                           "output": {"column": "y"}, **exp}]}}
+    return rigs.write(d / "rec.yaml", yaml.safe_dump(data, sort_keys=False))
+
+
+GOOD_LOG = "t,u,y\n" + "".join(f"{0.1 * k:.1f},{k // 5},{0.5 * k}\n" for k in range(30))
+
+RECORDED_CASES = [
+    ("missing-file", lambda d: _recorded(d, d / "nope.csv"), "nope.csv: no such file"),
+    ("missing-column", lambda d: _recorded(d, _log(d, GOOD_LOG), output={"column": "yy"}),
+     "no column 'yy' (columns: 't', 'u', 'y'); did you mean 'y'?"),
+    ("column-index-too-large", lambda d: _recorded(d, _log(d, GOOD_LOG), output={"column": 7}),
+     "column 7 does not exist (it has 3 columns, 0-based)"),
+    ("non-numeric-cell", lambda d: _recorded(d, _log(d, GOOD_LOG.replace("\n1.0,2,5.0\n", "\n1.0,2,five\n"))),
+     "row 11 (data row, 1-based), column 'y': 'five' is not a number"),
+    ("time-backwards", lambda d: _recorded(d, _log(d, GOOD_LOG.replace("\n1.0,2,5.0\n", "\n0.5,2,5.0\n")),
+                                           time={"column": "t"}),
+     "row 11 (data row, 1-based): the timestamp goes backwards"),
+    ("time-repeats", lambda d: _recorded(d, _log(d, GOOD_LOG.replace("\n1.0,2,5.0\n", "\n0.9,2,5.0\n")),
+                                         time={"column": "t"}),
+     "the timestamp repeats"),
+    ("empty-record", lambda d: _recorded(d, _log(d, "t,u,y\n,,\n,,\n")), "the record is empty"),
+    ("empty-file", lambda d: _recorded(d, _log(d, "")), "the file is empty"),
+    ("too-short", lambda d: _recorded(d, _log(d, GOOD_LOG), start=2.85), "fewer than 3 samples between start and stop"),
+    ("start-after-stop", lambda d: _recorded(d, _log(d, GOOD_LOG), start=2.0, stop=1.0),
+     "plant.experiments[0]: start (2.0) must be before stop (1.0)"),
+    ("scale-zero", lambda d: _recorded(d, _log(d, GOOD_LOG), input={"column": "u", "scale": 0.0}),
+     "plant.experiments[0].input: scale must not be 0"),
+    ("unknown-suffix", lambda d: _recorded(d, _log(d, GOOD_LOG, name="log.xlsx")),
+     "cannot tell the format from the suffix '.xlsx'"),
+    ("json-column-by-name", lambda d: _recorded(d, _log(d, '{"data": [[0, 1, 2]]}', name="log.json")),
+     "JSON columns are 0-based indices"),
+    ("misspelt-required-key", lambda d: rigs.write(d / "c.yaml", rigs.small(**{
+        "plant.linear.den": rigs.DELETE, "plant.linear.dem": [1.0, 2.0]})),
+     "plant.linear.dem: unknown key 'dem' (did you mean 'den'?)"),
+]
+
+
+@pytest.mark.parametrize("case_id,make,fragment", RECORDED_CASES, ids=[c[0] for c in RECORDED_CASES])
+@pytest.mark.parametrize("command", ["check", "simulate"])
+def test_bad_recorded_input(case_id, make, fragment, command, tmp_path, capsys):
+    path = make(tmp_path)
+    argv = [command, path] + (["--out", tmp_path / "out"] if command == "simulate" else [])
+    code, _, err = run_cli(argv, capsys)
+    assert_one_line_error(code, err, fragment)
+    assert not (tmp_path / "out" / "simulation.h5").exists()
