@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from hwid import HwidError
 from hwid.plant import make_plant
 from hwid.results import write_linear, write_nonlinear, write_simulation, write_whole
 
@@ -24,6 +25,8 @@ def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    if cfg.plant.kind == "recorded":
+        return _run_recorded(cfg, out, report, echo)
     plant = make_plant(cfg, journal_dir=out / "rig_journal")
     times: dict[str, float] = {}
     paths: dict[str, Path] = {}
@@ -71,4 +74,31 @@ def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
         paths["report"] = write_report(out)
         times["report"] = time.perf_counter() - t0
         echo(f"report: {paths['report']} ({times['report']:.1f} s)")
+    return {"paths": paths, "seconds": times}
+
+
+def _run_recorded(cfg, out: Path, report: bool, echo) -> dict:
+    """A recorded plant: its records to ``simulation.h5``, then the whole-model fit on them (the
+    stages need hwid's own staircases and sines)."""
+    from hwid.identify.whole import WholeModelFit
+    from hwid.recorded import describe, load_records
+    if not cfg.identification.whole.enabled:
+        raise HwidError(f"{cfg.source_path}: a recorded plant is identified by the whole-model fit; set "
+                        "identification.whole.enabled: true (the stages need hwid's own staircases and sines)")
+    times: dict[str, float] = {}
+    paths: dict[str, Path] = {}
+    t0 = time.perf_counter()
+    records = load_records(cfg)
+    paths["simulation"] = write_simulation(out / "simulation.h5", cfg, records, None)
+    echo(f"records: {describe(records)}")
+    fit = WholeModelFit.from_config(cfg).fit(records)
+    paths["whole"] = write_whole(out / "whole.h5", cfg, fit.result_)
+    times["whole"] = time.perf_counter() - t0
+    res = fit.result_
+    echo(f"whole model: {res.type}, d+ = {res.d_plus:.4g}, S^d = {res.slope_down:.4g}, d- = {res.d_minus:.4g}, "
+         f"h degree {len(res.h_coefficients) - 1}, G {res.structure}, sigma {res.sigma:.4g} ({times['whole']:.1f} s)")
+    if report:
+        from hwid.report.html import write_report
+        paths["report"] = write_report(out)
+        echo(f"report: {paths['report']}")
     return {"paths": paths, "seconds": times}

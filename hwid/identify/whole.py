@@ -15,9 +15,15 @@ factors, so every G tried is stable with ``G(0) = 1``:
 * a pole pair ``wn^2 / (s^2 + 2 zeta wn s + wn^2)`` (``log wn``, ``log zeta``),
 * a real zero ``tau s + 1`` (``tau`` any sign: a right-half-plane zero is allowed).
 
-The structure (poles, pairs, zeros) and the degree of h_bar are chosen by BIC. Intervals: 95 %,
-from the Gauss-Newton covariance of all parameters (h_bar's coefficients included) with the
-residual variance; the noise is taken as white.
+The type, the structure (poles, pairs, zeros) and the degree of h_bar are chosen together by an
+information criterion that charges F's, G's and the initial states' parameters as BIC does
+(``ln n`` each) and h_bar's coefficients as AIC does (2 each): a degree too low biases the borders
+and their intervals then miss the truth (with BIC throughout, a cubic h_bar was fitted as a
+quadratic in one run in seven and the 95 % intervals of d^+ held the truth in 82 % of 60 runs),
+while a degree too high only widens them; AIC throughout added needless poles to G.
+Intervals: 95 %, from the Gauss-Newton covariance of all parameters (h_bar's coefficients
+included) with the residual variance, widened by the residual's correlation time when the residual
+is not white (a misfit, or coloured noise).
 """
 from __future__ import annotations
 
@@ -221,7 +227,7 @@ class WholeModelFit:
     Parameters
     ----------
     max_degree : int
-        Highest degree of h_bar tried (degrees 1..max_degree, chosen by BIC).
+        Highest degree of h_bar tried (degrees 1..max_degree, chosen by AIC).
     structures : sequence of Structure, optional
         G structures tried (default :data:`STRUCTURES`).
     delay : bool
@@ -279,11 +285,13 @@ class WholeModelFit:
                                                  max_nfev=self.max_nfev)
                     rss = float(sol.fun @ sol.fun)
                     n, k = prob.y.size, prob.n_outer + degree
-                    bic = n * np.log(rss / n) + k * np.log(n)
+                    # BIC's penalty on F, G and the initial states, AIC's on h_bar's coefficients
+                    # (the module docstring says why)
+                    aic = n * np.log(rss / n) + (k - degree) * np.log(n) + 2 * degree
                     table.append({"type": kind, "structure": str(structure), "degree": degree, "rss": rss,
-                                  "parameters": k, "bic": float(bic)})
-                    if best is None or bic < best[0]:
-                        best = (bic, prob, sol.x)
+                                  "parameters": k, "aic": float(aic)})
+                    if best is None or aic < best[0]:
+                        best = (aic, prob, sol.x)
                     theta0 = sol.x
         _, prob, theta = best
         self.problem_, self.theta_ = prob, theta
@@ -322,11 +330,22 @@ class WholeModelFit:
         s2 = float(r @ r) / max(n - k, 1)
         jac = _jacobian(prob.full_residual, full)
         warnings = []
+        # columns on one scale before inverting: h_bar's high powers make J's columns differ by many
+        # orders of magnitude, and a pseudo-inverse would then zero whole directions (intervals of
+        # width 0) instead of leaving them wide
+        norms = np.sqrt(np.sum(jac * jac, axis=0))
+        norms[norms == 0] = 1.0
+        scaled = jac / norms
         try:
-            cov = s2 * np.linalg.pinv(jac.T @ jac)
+            cov = s2 * np.linalg.pinv(scaled.T @ scaled) / np.outer(norms, norms)
         except np.linalg.LinAlgError:
             cov = np.full((k, k), np.nan)
             warnings.append("the covariance could not be computed (singular Jacobian)")
+        tau = correlation_time(r, [rec.u.size - int(rec.attrs.get("burn_in", 0)) for rec in prob.records])
+        if tau > 1.5:
+            warnings.append(f"the residual is correlated over {tau:.3g} samples (a misfit, or coloured noise): "
+                            f"intervals widened by sqrt({tau:.3g}); the fit does not reach white noise")
+        cov = cov * max(tau, 1.0)
         z = stats.norm.ppf(0.975)
         # intervals of the reported quantities by the delta method on the outer parameters
         grads = {"d_plus": _grad(lambda t: t[0], full), "slope_down": _grad(lambda t: np.exp(t[1]), full),
@@ -343,6 +362,28 @@ class WholeModelFit:
         return WholeResult(f.type, f.slope_down, f.d_plus, f.d_minus, tuple(float(c) for c in h),
                            g.num, g.den, g.delay, str(prob.structure), ci, float(np.sqrt(s2)),
                            float(np.sqrt(np.mean(r * r))), int(n), init, tuple(table), tuple(warnings))
+
+
+def correlation_time(residual, lengths, max_lag: int = 100) -> float:
+    """The residual's integrated autocorrelation time ``1 + 2 sum_k rho_k`` (samples), summed over
+    lags until the autocorrelation first turns negative, pooled over the records (``lengths``):
+    the factor by which correlated residuals carry less information than white ones."""
+    pieces = np.split(np.asarray(residual, float), np.cumsum(lengths)[:-1])
+    sums, counts = np.zeros(max_lag + 1), np.zeros(max_lag + 1)
+    for e in pieces:
+        e = e - e.mean()
+        for lag in range(min(max_lag + 1, e.size)):
+            sums[lag] += float(e[lag:] @ e[:e.size - lag])
+            counts[lag] += e.size - lag
+    if sums[0] <= 0:
+        return 1.0
+    rho = (sums / np.maximum(counts, 1)) / (sums[0] / counts[0])
+    tau = 1.0
+    for lag in range(1, max_lag + 1):
+        if counts[lag] == 0 or rho[lag] <= 0:
+            break
+        tau += 2 * rho[lag]
+    return float(tau)
 
 
 def _jacobian(fun, x, rel: float = 1e-6) -> np.ndarray:

@@ -267,14 +267,14 @@ def whole_html(whole) -> str:
     for i, (c, (lo, hi)) in enumerate(zip(whole.h_coefficients, whole.ci["h_coefficients"])):
         if i:
             rows.append(_tr([f"h_bar c{i}", _num(c), f"[{_num(lo)}, {_num(hi)}]"]))
-    selection = [_tr(["type", "G structure", "degree", "RSS", "parameters", "BIC"], True)]
-    for s in sorted(whole.selection, key=lambda s: s["bic"]):
+    selection = [_tr(["type", "G structure", "degree", "RSS", "parameters", "criterion"], True)]
+    for s in sorted(whole.selection, key=lambda s: s["aic"]):
         selection.append(_tr([s["type"], s["structure"], str(s["degree"]), _num(s["rss"]), str(s["parameters"]),
-                              _num(s["bic"], 6)]))
+                              _num(s["aic"], 6)]))
     return (f"<p>{whole.type}; G(s) = {_html.escape(tf_text(whole.num, whole.den, whole.delay))} "
             f"({whole.structure}); residual σ = {_num(whole.sigma)} on {whole.samples} samples.</p>"
             f"<table id='whole'>{''.join(rows)}</table>"
-            f"<details><summary>selection (BIC, smallest first)</summary><table>{''.join(selection)}</table></details>")
+            f"<details><summary>selection (BIC penalty on F and G, AIC on ĥ; smallest first)</summary><table>{''.join(selection)}</table></details>")
 
 
 # ------------------------------------------------------------------- model, warnings, provenance
