@@ -56,7 +56,7 @@ BATCH = {
 }
 
 
-def changed(plant: dict, **changes) -> dict:
+def changed(plant: dict, /, **changes) -> dict:
     """A deep copy of ``plant`` with dotted keys replaced; the value :data:`DELETE` removes the key."""
     d = copy.deepcopy(plant)
     for key, val in changes.items():
@@ -71,9 +71,9 @@ def changed(plant: dict, **changes) -> dict:
     return d
 
 
-def config_text(plant: dict, **changes) -> str:
+def config_text(plant: dict, /, **changes) -> str:
     return yaml.safe_dump(changed(plant, **changes), sort_keys=False)
 
 
-def load(plant: dict, **changes) -> config.Config:
+def load(plant: dict, /, **changes) -> config.Config:
     return config.loads(config_text(plant, **changes))

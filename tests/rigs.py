@@ -19,6 +19,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+import plants
+
 TESTS = Path(__file__).resolve().parent
 
 CALLS: list[int] = []                 # input length of every call that reached a rig
@@ -139,22 +141,11 @@ N_EXPERIMENTS = 4    # staircase_up, staircase_down, sine_0, sine_1
 
 def small(**changes) -> dict:
     """A deep copy of :data:`SMALL` with dotted keys replaced (``{"plant.noise.std": 0}``);
-    the value :data:`DELETE` removes the key."""
-    import copy
-    d = copy.deepcopy(SMALL)
-    for key, val in changes.items():
-        node = d
-        parts = key.split(".")
-        for p in parts[:-1]:
-            node = node.setdefault(p, {})
-        if val is DELETE:
-            node.pop(parts[-1], None)
-        else:
-            node[parts[-1]] = val
-    return d
+    the value :data:`DELETE` removes the key (:func:`plants.changed`)."""
+    return plants.changed(SMALL, **changes)
 
 
-DELETE = object()
+DELETE = plants.DELETE
 
 
 def external(callable_: str, timeout: float | None = None) -> dict:
