@@ -33,7 +33,6 @@ PAPER_FAST_G = {
                       "levels_down": [1.0, 0.8, 0.6, 0.4, 0.25, 0.0, -0.3, -0.6, -1.0, -1.2, -1.4],
                       "hold": 5.0},
     },
-    "identification": {"nonlinear": {"max_degree": 5}},
 }
 
 #: An asymmetric backlash behind a first-order G with both protocols: the Monte Carlo batch's plant.

@@ -9,28 +9,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import plants
 from hwid import config
 from hwid.model import from_config
 
 ROOT = Path(__file__).resolve().parents[1]
 
-CFG = """
-name: cli
-seed: 8
-sampling: {dt: 0.01}
-plant:
-  kind: hammerstein_wiener
-  input_nonlinearity: {type: backlash, slope_up: 1.0, slope_down: 1.0, d_plus: 0.5, d_minus: -0.5}
-  linear: {num: [5.0], den: [1.0, 5.0]}
-  output_nonlinearity: {polynomial: [0, 0.5, 0, -3.36, 0, 6.4]}
-  noise: {std: 0.01}
-protocols:
-  staircase:
-    levels_up: [-1.0, -0.7, -0.4, -0.1, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2]
-    levels_down: [1.0, 0.8, 0.6, 0.4, 0.25, 0.0, -0.3, -0.6, -1.0, -1.2, -1.4]
-    hold: 5.0
-identification: {nonlinear: {max_degree: 5}}
-"""
+CFG = plants.config_text(plants.PAPER_FAST_G, name="cli", seed=8,
+                         **{"identification": {"nonlinear": {"max_degree": 5}}})
+NARROW = {"protocols.staircase.levels_up": [-0.3, 0.0, 0.3], "protocols.staircase.levels_down": [0.2, -0.1, -0.4]}
 
 KEYS = {"type", "slope_up", "slope_down", "d_plus", "d_minus", "h_coefficients", "degree", "levels", "X_hat",
         "X_hat_se", "flat_up", "flat_down", "slope_down_ci", "d_plus_ci", "d_minus_ci", "h_coefficients_ci",
@@ -82,8 +69,8 @@ def test_cli_bad_input_exits_2_with_one_line(tmp_path, case, capsys):
         args = ["--data", tmp_path / "bad.h5"]
         expect = "HDF5"
     else:
-        text = text.replace("[-1.0, -0.7, -0.4, -0.1, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2]", "[-0.3, 0.0, 0.3]")
-        text = text.replace("[1.0, 0.8, 0.6, 0.4, 0.25, 0.0, -0.3, -0.6, -1.0, -1.2, -1.4]", "[0.2, -0.1, -0.4]")
+        text = plants.config_text(plants.PAPER_FAST_G, name="cli", seed=8,
+                                  **{"identification": {"nonlinear": {"max_degree": 5}}}, **NARROW)
         expect = "too narrow"
     cfg_path.write_text(text)
     from hwid.cli import main

@@ -9,28 +9,15 @@ from __future__ import annotations
 
 import numpy as np
 
+import plants
 from hwid import config
 from hwid.identify.nonlinear import identify_nonlinear
 from hwid.model import from_config
 from hwid.plant import make_plant
 
-CFG = """
-name: coverage
-seed: 0
-sampling: {dt: 0.01}
-plant:
-  kind: hammerstein_wiener
-  input_nonlinearity: {type: backlash, slope_up: 1.0, slope_down: 1.0, d_plus: 0.5, d_minus: -0.5}
-  linear: {num: [5.0], den: [1.0, 5.0]}
-  output_nonlinearity: {polynomial: [0, 0.5, 0, -3.36, 0, 6.4]}
-  noise: {std: 0.01, ar: 0.5}
-protocols:
-  staircase:
-    levels_up: [-1.0, -0.7, -0.4, -0.1, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2]
-    levels_down: [1.0, 0.8, 0.6, 0.4, 0.25, 0.0, -0.3, -0.6, -1.0, -1.2, -1.4]
-    hold: 5.0
-identification: {nonlinear: {degree: 5, input_type: backlash}}
-"""
+CFG = plants.config_text(plants.PAPER_FAST_G, name="coverage", seed=0,
+                         **{"plant.noise.ar": 0.5,
+                            "identification": {"nonlinear": {"degree": 5, "input_type": "backlash"}}})
 RUNS = 250
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import plants
 from hwid import HwidError, config, protocols
 from hwid.identify.nonlinear import NonlinearEstimator, identify_nonlinear
 from hwid.paper import table1_rows
@@ -57,28 +58,10 @@ protocols:
 identification: {nonlinear: {max_degree: 5}}
 """
 
-# The paper's h and backlash behind a fast G (time constant 0.2 s): short holds, cheap runs.
-FAST = """
-name: fast
-seed: 5
-sampling: {dt: 0.01}
-plant:
-  kind: hammerstein_wiener
-  input_nonlinearity: {type: backlash, slope_up: 1.0, slope_down: 1.0, d_plus: 0.5, d_minus: -0.5}
-  linear: {num: [5.0], den: [1.0, 5.0]}
-  output_nonlinearity: {polynomial: [0, 0.5, 0, -3.36, 0, 6.4]}
-  noise: {std: 0.01, ar: AR}
-protocols:
-  staircase:
-    levels_up: [-1.0, -0.7, -0.4, -0.1, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2]
-    levels_down: [1.0, 0.8, 0.6, 0.4, 0.25, 0.0, -0.3, -0.6, -1.0, -1.2, -1.4]
-    hold: HOLD
-identification: {nonlinear: {EXTRA}}
-"""
-
-
-def fast_cfg(ar: float = 0.0, hold: float = 5.0, extra: str = "") -> config.Config:
-    return config.loads(FAST.replace("AR", repr(ar)).replace("HOLD", repr(hold)).replace("EXTRA", extra))
+def fast_cfg(ar: float = 0.0, hold: float = 5.0, extra: dict | None = None, **changes) -> config.Config:
+    """The paper's h and backlash behind a fast G (time constant 0.2 s): short holds, cheap runs."""
+    return plants.load(plants.PAPER_FAST_G, **{"plant.noise.ar": ar, "protocols.staircase.hold": hold,
+                                                "identification": {"nonlinear": dict(extra or {})}}, **changes)
 
 
 def true_X(cfg) -> np.ndarray:
@@ -241,26 +224,22 @@ def test_backlash_inverse_closed_form():
 
 def test_working_interval_too_narrow():
     # levels inside the gap (d^- = -0.5 < u < d^+ = 0.5): the gear never moves (Fig. 6a)
-    text = FAST.replace("AR", "0.0").replace("HOLD", "5.0").replace("EXTRA", "")
-    text = text.replace("[-1.0, -0.7, -0.4, -0.1, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2]", "[-0.3, -0.1, 0.1, 0.3]")
-    text = text.replace("[1.0, 0.8, 0.6, 0.4, 0.25, 0.0, -0.3, -0.6, -1.0, -1.2, -1.4]", "[0.2, 0.0, -0.2, -0.4]")
-    cfg = config.loads(text)
+    cfg = fast_cfg(**{"protocols.staircase.levels_up": [-0.3, -0.1, 0.1, 0.3],
+                      "protocols.staircase.levels_down": [0.2, 0.0, -0.2, -0.4]})
     with pytest.raises(HwidError, match=r"never leaves.*\[-0\.4, 0\.3\] is too narrow.*Fig\. 6a.*widen"):
         identify_nonlinear(cfg)
 
 
 def test_too_few_levels_for_the_degree():
-    text = FAST.replace("AR", "0.0").replace("HOLD", "5.0").replace("EXTRA", "degree: 5")
-    text = text.replace("[-1.0, -0.7, -0.4, -0.1, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2]",
-                        "[-1.0, -0.7, -0.4, -0.1, 0.4, 0.8, 1.2]")
-    cfg = config.loads(text)                                  # 7 levels >= p + 1: the config is valid ...
+    cfg = fast_cfg(extra={"degree": 5},
+                   **{"protocols.staircase.levels_up": [-1.0, -0.7, -0.4, -0.1, 0.4, 0.8, 1.2]})                                  # 7 levels >= p + 1: the config is valid ...
     with pytest.raises(HwidError, match=r"N - j_a = 3 .*degree 5.*eq\. \(11\).*N - j_a >= p \+ 1 = 6"):
         identify_nonlinear(cfg)                               # ... but only 3 lie on the border
 
 
 def test_degree_selection_is_capped_by_eq_11_and_says_so():
     # 6 border levels for a degree-5 h: p = 5 is the most eq. (11) allows, so it cannot be checked
-    res, _ = identify_nonlinear(fast_cfg(extra="input_type: backlash"))
+    res, _ = identify_nonlinear(fast_cfg(extra={"input_type": "backlash"}))
     assert res.degree == 5
     assert any("highest the N - j_a = 6" in w for w in res.warnings)
 
@@ -268,7 +247,7 @@ def test_degree_selection_is_capped_by_eq_11_and_says_so():
 def test_coloured_noise_standard_errors_are_honest():
     """AR(1) noise with pole 0.95 (integrated correlation time 39 samples): a white-noise standard
     error would be sqrt(39) ~ 6 times too small; ours must cover the truth at the nominal rate."""
-    cfg = fast_cfg(ar=0.95, hold=20.0, extra="degree: 5, input_type: backlash")
+    cfg = fast_cfg(ar=0.95, hold=20.0, extra={"degree": 5, "input_type": "backlash"})
     Xt = true_X(cfg)
     up, down = protocols.staircases(cfg)
     z, naive_ratio, inside = [], [], 0
@@ -358,7 +337,7 @@ identification: {nonlinear: {max_degree: 4}}
 def test_save_load_and_simulation_h5(tmp_path):
     from hwid.results import open_results
     from hwid.simulate import simulate
-    cfg = fast_cfg(extra="input_type: backlash, degree: 5")
+    cfg = fast_cfg(extra={"input_type": "backlash", "degree": 5})
     sim = simulate(cfg, tmp_path / "sim")
     res_data, records = identify_nonlinear(cfg, data=sim)
     res_plant, _ = identify_nonlinear(cfg)                    # same seed, same experiment names: same noise
