@@ -85,7 +85,7 @@ CONFIG_CASES = [
     ("name-list", {"name": [1, 2]}, "name", "must be a valid string (got a list)"),
     ("name-path", {"name": "../../etc/passwd"}, "name", "may contain only letters, digits and _ . + -"),
     ("noise-not-mapping", {"plant.noise": [0.01]}, "plant.noise", "must be a mapping of keys (got a list)"),
-    ("kind-unknown", {"plant.kind": "wiener"}, "plant.kind", "must be 'hammerstein_wiener' or 'external'"),
+    ("kind-unknown", {"plant.kind": "wiener"}, "plant.kind", "must be 'hammerstein_wiener', 'external' or 'recorded'"),
     ("input-type-unknown", {"plant.input_nonlinearity.type": "dead_zone"}, "plant.input_nonlinearity.type",
      "must be 'backlash' or 'backlash_inverse'"),
     ("num-entry-string", {"plant.linear.num": ["one"]}, "plant.linear.num[0]", "must be a valid number"),

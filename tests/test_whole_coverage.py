@@ -1,5 +1,9 @@
 """Monte Carlo coverage of the whole-model fit's 95 % intervals (slow): 200 noise realisations of
-random levels joined by ramps; each border's interval must hold the truth in 90-99 % of them."""
+24 random levels joined by ramps; each border's interval must hold the truth in 90-99 % of them.
+
+The borders are learnt from the reversals only; with 12 levels (about six reversals each way) the
+intervals held the truth in 92 %, 95 %, 89-92 % of runs (d^+, d^-, S^d): the asymptotics the
+intervals rest on are not reached there, and the README says so."""
 import numpy as np
 import pytest
 
@@ -15,7 +19,7 @@ def test_whole_fit_interval_coverage():
     _, truth = _plant(**{"plant.output_nonlinearity.polynomial": [0, 1.0, 0.8, -0.6],
                          "plant.input_nonlinearity.slope_down": 1.3})
     norm = truth.normalised().input
-    u = _levels_with_ramps(np.random.default_rng(0), 12, 2.0, 0.5, 0.05)
+    u = _levels_with_ramps(np.random.default_rng(0), 24, 2.0, 0.5, 0.05)
     x = truth.simulate(u, 0.05, gear=0.0).x
     seeds = np.random.SeedSequence(2024).spawn(RUNS)
     hits = {"d_plus": 0, "d_minus": 0, "slope_down": 0}

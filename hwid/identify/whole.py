@@ -23,7 +23,8 @@ quadratic in one run in seven and the 95 % intervals of d^+ held the truth in 82
 while a degree too high only widens them; AIC throughout added needless poles to G.
 Intervals: 95 %, from the Gauss-Newton covariance of all parameters (h_bar's coefficients
 included) with the residual variance, widened by the residual's correlation time when the residual
-is not white (a misfit, or coloured noise).
+is not white (a misfit, or coloured noise); the borders' and the slope's joined with those of the fit
+one degree of h_bar higher (:meth:`WholeModelFit._result` says why).
 """
 from __future__ import annotations
 
@@ -273,7 +274,7 @@ class WholeModelFit:
         span = max(r.u.size * r.dt for r in records)
         dt = min(r.dt for r in records)
         width = float(np.ptp(np.concatenate([r.u for r in records]))) or 1.0
-        table, best = [], None
+        table, best, solutions = [], None, {}
         for kind in types:
             for structure in structures:
                 theta0 = self._start(records, kind, structure, start)
@@ -290,12 +291,13 @@ class WholeModelFit:
                     aic = n * np.log(rss / n) + (k - degree) * np.log(n) + 2 * degree
                     table.append({"type": kind, "structure": str(structure), "degree": degree, "rss": rss,
                                   "parameters": k, "aic": float(aic)})
+                    solutions[kind, structure, degree] = (prob, sol.x)
                     if best is None or aic < best[0]:
                         best = (aic, prob, sol.x)
                     theta0 = sol.x
         _, prob, theta = best
         self.problem_, self.theta_ = prob, theta
-        self.result_ = self._result(prob, theta, table)
+        self.result_ = self._result(prob, theta, table, solutions.get((prob.type, prob.structure, prob.degree + 1)))
         return self
 
     def _start(self, records, kind, structure, start: HWModel | None) -> np.ndarray:
@@ -321,8 +323,33 @@ class WholeModelFit:
         costs = [float(np.sum(prob.residual(t) ** 2)) for t in grid]
         return grid[int(np.argmin(costs))]
 
-    def _result(self, prob: _Problem, theta, table) -> WholeResult:
+    def _result(self, prob: _Problem, theta, table, richer=None) -> WholeResult:
+        """The result of the selected fit; ``richer`` is ``(problem, theta)`` of the same type and
+        structure with h_bar one degree higher, when it was fitted.
+
+        The borders' and slope's intervals are the union of the selected fit's and the richer
+        fit's: the criterion drops a weak top coefficient of h_bar now and then, the borders of
+        a fit with too low a degree are biased and its intervals miss the truth, while the fit
+        one degree up holds the truth's model and only widens them (post-selection honesty at
+        the price of slightly wider intervals)."""
         f, g, states = prob.unpack(theta)
+        h = prob.h(theta)
+        ci, s2, r, warnings = self._intervals(prob, theta)
+        if richer is not None:
+            wider, *_ = self._intervals(*richer)
+            for name in ("d_plus", "d_minus", "slope_down"):
+                ci[name] = (min(ci[name][0], wider[name][0]), max(ci[name][1], wider[name][1]))
+        if prob.degree == self.max_degree:
+            warnings.append(f"h_bar's degree is the highest tried ({self.max_degree}); a higher one may fit better")
+        init = {rec.name: {"gear": gear, "rest": rest} for rec, (gear, rest) in zip(prob.records, states)}
+        return WholeResult(f.type, f.slope_down, f.d_plus, f.d_minus, tuple(float(c) for c in h),
+                           g.num, g.den, g.delay, str(prob.structure), ci, float(np.sqrt(s2)),
+                           float(np.sqrt(np.mean(r * r))), int(r.size), init, tuple(table), tuple(warnings))
+
+    @staticmethod
+    def _intervals(prob: _Problem, theta) -> tuple[dict, float, np.ndarray, list]:
+        """95 % intervals of the borders, the slope and h_bar's coefficients of the fit ``theta``
+        of ``prob``; with the residual variance, the residual and the warnings they raise."""
         h = prob.h(theta)
         full = np.concatenate([theta, h[1:]])
         r = prob.full_residual(full)
@@ -356,12 +383,7 @@ class WholeModelFit:
             ci[name] = (value - z * sd, value + z * sd)
         sd_h = np.sqrt(np.clip(np.diag(cov)[prob.n_outer:], 0, None))
         ci["h_coefficients"] = [(0.0, 0.0)] + [(float(c - z * s), float(c + z * s)) for c, s in zip(h[1:], sd_h)]
-        if prob.degree == self.max_degree:
-            warnings.append(f"h_bar's degree is the highest tried ({self.max_degree}); a higher one may fit better")
-        init = {rec.name: {"gear": gear, "rest": rest} for rec, (gear, rest) in zip(prob.records, states)}
-        return WholeResult(f.type, f.slope_down, f.d_plus, f.d_minus, tuple(float(c) for c in h),
-                           g.num, g.den, g.delay, str(prob.structure), ci, float(np.sqrt(s2)),
-                           float(np.sqrt(np.mean(r * r))), int(n), init, tuple(table), tuple(warnings))
+        return ci, s2, r, warnings
 
 
 def correlation_time(residual, lengths, max_lag: int = 100) -> float:
