@@ -277,13 +277,24 @@ class WholeModelFit:
         table, best, solutions = [], None, {}
         for kind in types:
             for structure in structures:
-                theta0 = self._start(records, kind, structure, start)
+                first = _best_states(_Problem(records, kind, structure, max(degrees), self.delay),
+                                     self._start(records, kind, structure, start))
+                theta0 = None
                 for degree in degrees:
                     prob = _Problem(records, kind, structure, degree, self.delay)
                     lo, hi = prob.bounds(width, span, dt)
-                    sol = optimize.least_squares(prob.residual, np.clip(theta0, lo + 1e-9, hi - 1e-9),
-                                                 bounds=(lo, hi), method="trf", x_scale=1.0,
-                                                 max_nfev=self.max_nfev)
+                    # from the start and from the fit one degree lower: the cost is only piecewise
+                    # smooth in the borders (a sample switches between held and moving gear), and
+                    # either path alone can stop in a shallow local minimum
+                    sol = None
+                    for t0 in (first, theta0):
+                        if t0 is None:
+                            continue
+                        trial = optimize.least_squares(prob.residual, np.clip(t0, lo + 1e-9, hi - 1e-9),
+                                                       bounds=(lo, hi), method="trf", x_scale=1.0,
+                                                       max_nfev=self.max_nfev)
+                        if sol is None or trial.cost < sol.cost:
+                            sol = trial
                     rss = float(sol.fun @ sol.fun)
                     n, k = prob.y.size, prob.n_outer + degree
                     # BIC's penalty on F, G and the initial states, AIC's on h_bar's coefficients
@@ -384,6 +395,24 @@ class WholeModelFit:
         sd_h = np.sqrt(np.clip(np.diag(cov)[prob.n_outer:], 0, None))
         ci["h_coefficients"] = [(0.0, 0.0)] + [(float(c - z * s), float(c + z * s)) for c, s in zip(h[1:], sd_h)]
         return ci, s2, r, warnings
+
+
+def _best_states(prob: _Problem, theta) -> np.ndarray:
+    """``theta`` with each experiment's initial gear put where it fits best of: against the lower
+    border, in the middle of the play, against the upper one (one experiment at a time). The gear's
+    place enters through a tanh: started on the wrong side, the search stalls where the tanh is flat."""
+    theta = np.array(theta, float)
+    j = 3 + prob.structure.n_params + int(prob.with_delay)
+    best = float(np.sum(prob.residual(theta) ** 2))
+    for _ in prob.records:
+        for frac in (-6.0, 0.0, 6.0):
+            trial = theta.copy()
+            trial[j] = frac
+            cost = float(np.sum(prob.residual(trial) ** 2))
+            if cost < best:
+                best, theta = cost, trial
+        j += 2
+    return theta
 
 
 def correlation_time(residual, lengths, max_lag: int = 100) -> float:
