@@ -47,7 +47,8 @@ class _Rig:
         self.gear = g
         return v
 
-    def base(self, u, dt, out_play: float = 0.0, mode=None):
+    def base(self, u, dt, out_play: float = 0.0, mode=None, start=None):
+        """G at rest at the gear's first position, or at ``start`` where given."""
         v = self.gear_out(u, 0.3)
         num, den = [2.0], [1.0, 3.0, 2.0]
         if mode is not None:        # a lightly damped mode wn^2 / (s^2 + 2 zeta wn s + wn^2)
@@ -55,7 +56,8 @@ class _Rig:
             num, den = np.polymul(num, [wn * wn]), np.polymul(den, [1.0, 2 * z * wn, wn * wn])
         b, a, _ = signal.cont2discrete((num, den), dt, method="zoh")[:3]
         b = np.ravel(b)
-        zi = signal.lfiltic(b, a, y=[v[0]] * (len(a) - 1), x=[v[0]] * (len(b) - 1))
+        v0 = v[0] if start is None else start
+        zi = signal.lfiltic(b, a, y=[v0] * (len(a) - 1), x=[v0] * (len(b) - 1))
         w = signal.lfilter(b, a, v, zi=zi)[0]
         return w - 0.1 * w ** 3
 
@@ -77,6 +79,26 @@ def plain(u, dt):
     u = np.asarray(u, float)
     return r.base(u, dt) + r.noise(u.size)
 
+
+
+def plain_at_rest(u, dt):
+    """The plain plant on a rig that does not keep its state between calls: at every call the gear
+    rests against one border at ``u[0]`` (drawn at random: the rig was parked, homed or moved by
+    hand) and G is at rest there."""
+    r = _rig("plain_at_rest")
+    u = np.asarray(u, float)
+    r.gear = float(u[0] + 0.3 * r.rng.choice([-1.0, 1.0]))
+    return r.base(u, dt) + r.noise(u.size)
+
+
+def plain_anywhere(u, dt):
+    """The plain plant started anywhere at every call: the gear at a random point inside the play
+    at ``u[0]`` and G at rest at a random level of the working range (a rig left mid-move)."""
+    r = _rig("plain_anywhere")
+    u = np.asarray(u, float)
+    r.gear = float(u[0] + r.rng.uniform(-0.3, 0.3))
+    level = r.rng.uniform(-1.0, 1.0)
+    return r.base(u, dt, start=level) + r.noise(u.size)
 
 def sensor_lag(u, dt):
     r = _rig("sensor_lag")
@@ -227,3 +249,15 @@ def input_saturation_paper(u, dt):
     u = np.clip(np.asarray(u, float), t["u_lo"], t["u_hi"])
     return r.paper(u, dt) + r.noise(u.size)
 
+
+
+def paper_at_rest(u, dt):
+    """The paper's plant on a rig parked between calls: at every call the gear rests against a
+    border at ``u[0]`` drawn at random and G is at rest there (nothing carried over)."""
+    if "paper_at_rest" not in _RIGS:
+        _RIGS["paper_at_rest"] = _PaperRig(zlib.crc32(b"paper_at_rest"))
+    r = _RIGS["paper_at_rest"]
+    u = np.asarray(u, float)
+    r.gear = float(u[0] + 0.5 * r.rng.choice([-1.0, 1.0]))
+    r.state = None
+    return r.paper(u, dt) + r.noise(u.size)

@@ -84,6 +84,17 @@ def test_plain_plant_is_none(plain):
     assert not s["test"]["significant"]
 
 
+
+@pytest.mark.parametrize("driver", ["plain_at_rest", "plain_anywhere"])
+def test_plain_plant_is_none_whatever_state_the_rig_starts_each_call_in(tmp_path_factory, base_model, driver):
+    """The verdict does not depend on the rig's state between calls: the same plain plant, with its
+    own simulator as the model, on a rig that parks its gear against a random border, or anywhere
+    inside the play with G at a random level, before every call."""
+    s, _ = _run(tmp_path_factory, driver, base_model)
+    assert s["verdict"] == {"effect": "none", "block": "none", "explained_fraction": 0.0}
+    assert s["gap_before"] < 1.05 * s["noise_floor"]
+    assert not s["test"]["significant"]
+
 def test_rate_limit_named_and_gap_grows_with_rate(tmp_path_factory, base_model):
     s, _ = _run(tmp_path_factory, "rate_limit", base_model)
     assert s["verdict"]["effect"] == "rate_limit"
@@ -346,6 +357,24 @@ def test_input_clip_on_the_paper_plant_found_by_the_profile_scan(tmp_path):
     assert s["gap_before"] > 100 * s["noise_floor"]
     assert s["gap_after"] < 1.1 * s["noise_floor"]
 
+
+
+def test_paper_plant_parked_between_calls_is_none(tmp_path):
+    """The paper's plant (play 1.0, as wide as a third of the range) on a rig that parks its gear
+    against a random border at the first input of every call, with its own simulator as
+    ``--model``: the lead-ins must put the gear on a known border from either side."""
+    d = {"name": "paper-parked", "seed": 11, "sampling": {"dt": 0.05},
+         "plant": {"kind": "external", "callable": "diagnose_rigs:paper_at_rest"},
+         "protocols": {"staircase": {"levels_up": [round(float(x), 4) for x in np.linspace(-1.4, 1.2, 10)],
+                                     "levels_down": [round(float(x), 4) for x in np.linspace(1.2, -1.4, 11)[1:]],
+                                     "hold": 30.0},
+                       "sine": {"amplitude": 1.0, "frequencies": [0.02, 0.05, 0.1, 0.2], "periods": 3}}}
+    (tmp_path / "paper.yaml").write_text(yaml.safe_dump({"plant": R.PAPER}))
+    (tmp_path / "cfg.yaml").write_text(yaml.safe_dump(d))
+    s = diagnose(config.load(tmp_path / "cfg.yaml"), tmp_path / "out", model=tmp_path / "paper.yaml",
+                 echo=lambda *a: None)
+    assert s["verdict"]["effect"] == "none", (s["verdict"], s["gap_before"] / s["noise_floor"])
+    assert s["gap_before"] < 1.05 * s["noise_floor"]
 
 def test_cancel_slow_pairs_takes_out_a_gain_step_below_the_band():
     """A real pole-zero pair at 0.0024 / 0.0026 rad/s under a band from 0.02 (as stage 2 fitted on

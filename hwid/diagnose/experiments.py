@@ -17,9 +17,10 @@ data the fits never saw). Kinds, and what each exposes:
                bandwidth/5 to 30x the bandwidth
 =============  ====================================================================================
 
-Every experiment starts with a lead-in (the far end of the range briefly, then its first value for
-1.5 settling times) that puts the input nonlinearity on a known border and lets G settle whatever
-state the rig was left in; the lead-in is never scored. Three validation experiments are repeated at
+Every experiment starts with a lead-in (the far end of the range briefly, then its first value at
+the other end until G has settled from any state: :func:`lead_time`) that puts the input
+nonlinearity on a known border and lets G settle whatever state the rig was left in (parked, homed,
+moved by hand, or where the last call ended); the lead-in is never scored. Three validation experiments are repeated at
 the end of the session (noise floor, and whether the gap is reproducible). Everything is scaled
 from the sim-side model (settling time, bandwidth) and the config (identification range, sine
 amplitude), and is deterministic given the config's seed, so a rerun finds its calls in the rig
@@ -72,6 +73,11 @@ class Design:
     inside: bool = False              # keep every input inside what the model was identified on
     w_lo: float = -np.inf             # identified range of w (stage 1), model units
     w_hi: float = np.inf
+    lead_s: float = 0.0               # hold at an experiment's first input before it is scored
+
+    @property
+    def lead_hold_s(self) -> float:
+        return max(self.lead_s, 1.5 * self.settle_s)
 
     @property
     def width(self) -> float:
@@ -87,6 +93,31 @@ def settling_time(model: HWModel) -> float:
     p = model.linear.poles()
     slow = np.min(np.abs(p.real)) if p.size else np.inf
     return float(4.0 / slow + model.linear.delay) if np.isfinite(slow) and slow > 0 else float(model.linear.delay)
+
+
+def lead_time(model: HWModel, u_lo: float, u_hi: float, resolution: float = 1e-4) -> float:
+    """Seconds G needs, from any state inside the working range, to come within ``resolution`` of
+    the output's span of its rest, seen through h (s).
+
+    A rig may start a call anywhere: parked, homed, moved by hand, left mid-move. The initial error
+    of w is at most the span of w over the working range; it decays as ``exp(-t / tau)`` with
+    ``tau`` G's slowest time constant and reaches the output multiplied by at most ``max |h'|``.
+    ``resolution`` 1e-4 of the output span is a 14-bit sensor's step, below any noise floor."""
+    p = model.linear.poles()
+    slow = float(np.min(np.abs(p.real))) if p.size else np.inf
+    if not np.isfinite(slow) or slow <= 0:
+        return float(model.linear.delay)
+    F, g0 = model.input, float(model.linear.dc_gain)
+    u = np.linspace(u_lo, u_hi, 201)
+    v = np.concatenate([F.ascending(u), F.descending(u)])
+    w = np.linspace(g0 * v.min(), g0 * v.max(), 401)
+    y = model.output(w)
+    span_w, span_y = float(np.ptp(w)), float(np.ptp(y))
+    if span_w <= 0 or span_y <= 0:
+        return float(model.linear.delay)
+    slope = float(np.max(np.abs(np.gradient(y, w))))
+    gain = slope * span_w / (resolution * span_y)
+    return float(np.log(max(gain, 1.0)) / slow + model.linear.delay)
 
 
 def bandwidth(model: HWModel, dt: float) -> float:
@@ -124,10 +155,13 @@ def design_from(cfg, model: HWModel, identified: dict | None = None) -> Design:
         # the staircase's hold is the user's own statement of how long the plant takes to settle;
         # a model pole much slower than that (an identified G can put one near 0) is not believed
         settle = min(settle, 2.0 * float(st.hold))
+    lead = lead_time(model, lo, hi)
+    if st is not None:
+        lead = min(lead, 3.0 * float(st.hold))
     if identified:
         w_lo, w_hi = (float(x) for x in identified.get("w_range", (-np.inf, np.inf)))
-        return Design(dt, lo, hi, amp, settle, bandwidth(model, dt), int(cfg.seed), True, w_lo, w_hi)
-    return Design(dt, lo, hi, amp, settle, bandwidth(model, dt), int(cfg.seed))
+        return Design(dt, lo, hi, amp, settle, bandwidth(model, dt), int(cfg.seed), True, w_lo, w_hi, lead)
+    return Design(dt, lo, hi, amp, settle, bandwidth(model, dt), int(cfg.seed), lead_s=lead)
 
 
 def _n(seconds: float, dt: float) -> int:
@@ -139,8 +173,13 @@ def _levels(values, hold_s, dt) -> np.ndarray:
 
 
 def _lead_in(d: Design, first: float, far: float) -> np.ndarray:
-    return np.concatenate([np.full(_n(max(d.settle_s / 4, 20 * d.dt), d.dt), far),
-                           np.full(_n(1.5 * d.settle_s, d.dt), first)])
+    """``far`` briefly, then ``first`` until G has settled from any state (:func:`lead_time`). Every
+    caller puts ``far`` and ``first`` at opposite ends of the range: the move between them crosses
+    the whole play, so the gear ends it against a known border whatever state the rig started the
+    call in; and ``u[0]`` is ``far`` itself, so an actuator reset to ``u[0]`` by its driver has no
+    way to travel before the move."""
+    brief = _n(max(d.settle_s / 4, 20 * d.dt), d.dt)
+    return np.concatenate([np.full(brief, far), np.full(_n(d.lead_hold_s, d.dt), first)])
 
 
 def _exp(d: Design, name, kind, role, body, lead, z=None, zlead=None, **variable) -> Experiment:
@@ -158,7 +197,7 @@ def _precomp(F, z: np.ndarray) -> np.ndarray:
 
 def _z_sweep(d: Design, a: float) -> np.ndarray:
     """``z`` from ``+a`` down to ``-a``: through the pre-compensator F ends on its descending border
-    whatever state the rig was in."""
+    whatever state the rig was in (the move crosses the play when ``2a`` exceeds it)."""
     k = _n(max(d.settle_s / 8, 10 * d.dt), d.dt)
     return np.concatenate([np.full(k, a), np.linspace(a, -a, k)])
 
@@ -166,7 +205,7 @@ def _z_sweep(d: Design, a: float) -> np.ndarray:
 def _sine_exp(d: Design, F, name, role, amp, omega, seed_phase=0.0) -> Experiment:
     dt = d.dt
     period = 2 * np.pi / omega
-    n_lead = _n(max(1.5 * d.settle_s, period), dt)
+    n_lead = _n(max(d.lead_hold_s, period), dt)
     n_body = _n(max(2 * period, d.settle_s), dt)
     t = np.arange(n_lead + n_body) * dt
     z = amp * np.sin(omega * t + seed_phase)
@@ -286,7 +325,7 @@ def design(cfg, model: HWModel, d: Design | None = None) -> list[Experiment]:
         z = _multisine(d, rng, n, A / 2.5)
         if d.inside:
             z = np.clip(z, -a_max, a_max)
-        zl = np.concatenate([_z_sweep(d, 1.05 * A), np.full(_n(1.5 * H, dt), z[0])])
+        zl = np.concatenate([_z_sweep(d, 1.05 * A), np.full(_n(d.lead_hold_s, dt), z[0])])
         zz = np.concatenate([zl, z])
         u = _precomp(F, zz)
         mask = np.zeros(u.size, bool)

@@ -144,10 +144,12 @@ def run_validation(cfg, plant, sim_model, origin, identified: bool, echo) -> Val
     fit_idx = [i for i, e in enumerate(exps) if e.role == "fit"]
     val_idx = [i for i, e in enumerate(exps) if e.role == "validation"]
     # the input the plant held when each experiment began (they run in this order, after the
-    # identification's records when the model was identified here): the last moves and hold
+    # identification's records when the model was identified here): the whole experiment before
+    # (its lead-in puts a slow actuator where the experiment's first input is, so from there on
+    # its path is known), or the last moves and hold of the identification's last record
     keep = max(int(round(4 * design.settle_s / design.dt)), 1)
     ids = [np.asarray(r.u, float) for r in origin.get("records", []) if np.size(getattr(r, "u", None))]
-    u_before = [ids[-1][-keep:] if ids else None] + [e.u[-keep:] for e in exps[:-1]]
+    u_before = [ids[-1][-keep:] if ids else None] + [e.u for e in exps[:-1]]
     sim_fit = ModelSim(sim_model, design.dt, [exps[i].u for i in fit_idx], [u_before[i] for i in fit_idx])
     sim_val = ModelSim(sim_model, design.dt, [exps[i].u for i in val_idx], [u_before[i] for i in val_idx])
     scale = _scale(design, exps, sim_fit, sim_val, records)
