@@ -82,6 +82,7 @@ def test_plain_plant_is_none(plain):
     assert s["verdict"] == {"effect": "none", "block": "none", "explained_fraction": 0.0}
     assert s["gap_before"] < 1.05 * s["noise_floor"]
     assert not s["test"]["significant"]
+    assert s["residual_structure"] == []
 
 
 
@@ -123,6 +124,14 @@ def test_outside_effect_is_unexplained(tmp_path_factory, base_model):
     assert s["verdict"]["block"] != "none"
     assert s["gap_after"] == s["gap_before"] > 3 * s["noise_floor"]
     assert s["where"]["experiments"] and s["where"]["region"]
+    # stick-slip at the output: the remainder depends on which way the output last moved (the
+    # shaft lags 0.04 behind on either side: -0.08 between rising and falling, less where the
+    # direction has just turned); on sines it is also periodic at their harmonics
+    found = {item["kind"]: item for item in s["residual_structure"]}
+    assert all(set(item) == {"kind", "evidence", "p_value"} for item in found.values())
+    assert found["direction_of_motion"]["p_value"] < 1e-6 and "harmonics" in found
+    shift = float(found["direction_of_motion"]["evidence"].rsplit("by ", 1)[1])
+    assert -0.08 <= shift < -0.04
 
 
 def test_json_keys_and_h5(lag):

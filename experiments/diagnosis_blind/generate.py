@@ -23,6 +23,8 @@ import yaml
 CATALOGUE = ["input_saturation", "rate_limit", "input_deadzone", "curved_borders", "time_delay",
              "resonance", "sensor_lag", "sensor_saturation", "drift"]
 OUTSIDE = ["hysteretic_friction", "gain_drift", "second_nonlinearity"]
+# what a rig does between calls (rigkit's module docstring)
+BETWEEN_CALLS = ["carry", "parked", "anywhere"]
 
 # base plants: F, G (descending powers), h (ascending), noise, sampling and identification protocols
 BASES = {
@@ -144,8 +146,11 @@ def generate(out: Path, n_cases: int = 40, seed: int = 2024) -> list[str]:
         d = out / cid
         d.mkdir(exist_ok=True)
         ep = effect_params(label, b, rng)
+        between = str(rng.choice(BETWEEN_CALLS))
+        actuator = str(rng.choice(["carry", "reset"]))
         params = {"F": b["F"], "G": b["G"], "h": b["h"], "noise": b["noise"], "effect": label,
-                  "effect_params": ep, "seed": int(case_seeds[i].generate_state(1)[0])}
+                  "effect_params": ep, "seed": int(case_seeds[i].generate_state(1)[0]),
+                  "between_calls": between, "actuator": actuator, "levels": list(b["levels"])}
         (d / f"rig_{cid}.py").write_text(RIG.format(params=json.dumps(params)))
         lo, hi = b["levels"]
         up = np.round(np.linspace(lo, hi, 10), 4).tolist()
@@ -160,7 +165,7 @@ def generate(out: Path, n_cases: int = 40, seed: int = 2024) -> list[str]:
                            "linear": {"num": b["G"]["num"], "den": b["G"]["den"]},
                            "output_nonlinearity": {"polynomial": b["h"]}, "noise": b["noise"]}}
         (d / "model.yaml").write_text(yaml.safe_dump(model, sort_keys=False))
-        sealed[cid] = {"label": label, "base": base, "params": ep}
+        sealed[cid] = {"label": label, "base": base, "params": ep, "between_calls": between, "actuator": actuator}
         ids.append(cid)
     (out / "sealed.json").write_text(json.dumps(sealed, indent=1))
     return ids

@@ -2,7 +2,18 @@
 discretisations) so the diagnoser's effect models are not the rigs' formulas.
 
 A rig is ``PARAMS`` (base plant + one effect or none) and a mutable ``STATE`` carried from call to
-call like a real machine's (gear position, drift, elapsed time, noise generator).
+call like a real machine's (gear position, drift, elapsed time, noise generator). What the rig does
+between calls is ``PARAMS["between_calls"]``:
+
+* ``carry`` - the gear stays where the last call left it (G always starts at rest at the call's
+  first input, as a rig left standing between calls does);
+* ``parked`` - the gear rests against one border at the call's first input, drawn at random at
+  every call (parked, homed, moved by hand);
+* ``anywhere`` - the gear at a random point inside the play and G at rest at a random level of the
+  working range (a rig left mid-move);
+
+and ``PARAMS["actuator"]`` (``carry`` or ``reset``) whether an actuator with memory (a rate limit)
+starts where it was left or at the call's first input.
 """
 from __future__ import annotations
 
@@ -51,14 +62,31 @@ def _bow(u, bow, side):
     return k * (hi - lo) * (2 * s - 1) ** 2
 
 
-def _lti(num, den, x, dt, method="zoh"):
+def _lti(num, den, x, dt, method="zoh", start=None):
     b, a, _ = signal.cont2discrete((np.asarray(num, float), np.asarray(den, float)), dt, method=method)
     b = np.ravel(b)
     a = np.ravel(a)
-    # start at the equilibrium of the first sample
+    # start at the equilibrium of the first sample, or of ``start``
+    x0 = x[0] if start is None else start
     g0 = np.polyval(num, 0.0) / np.polyval(den, 0.0)
-    zi = signal.lfiltic(b, a, y=[g0 * x[0]] * (len(a) - 1), x=[x[0]] * (len(b) - 1))
+    zi = signal.lfiltic(b, a, y=[g0 * x0] * (len(a) - 1), x=[x0] * (len(b) - 1))
     return signal.lfilter(b, a, x, zi=zi)[0]
+
+
+def _between_calls(p, st, u0, rng):
+    """Put the gear (and G's starting level) where the rig's between-call behaviour leaves it."""
+    how = p.get("between_calls", "carry")
+    if how == "carry" or p["F"]["type"] != "backlash":
+        return None
+    F = p["F"]
+    lo, hi = F["slope_up"] * (u0 - F["d_plus"]), F["slope_down"] * (u0 - F["d_minus"])
+    lo, hi = min(lo, hi), max(lo, hi)
+    if how == "parked":
+        st["gear"] = float(lo if rng.random() < 0.5 else hi)
+        return None
+    st["gear"] = float(rng.uniform(lo, hi))
+    return float(rng.uniform(F["slope_down"] * (min(p.get("levels", (u0, u0))) - F["d_minus"]),
+                             F["slope_up"] * (max(p.get("levels", (u0, u0))) - F["d_plus"])))
 
 
 def run(p: dict, st: dict, u, dt: float) -> np.ndarray:
@@ -77,7 +105,7 @@ def run(p: dict, st: dict, u, dt: float) -> np.ndarray:
         u = np.minimum(np.maximum(u, ep["lo"]), ep["hi"])
     elif e == "rate_limit":
         r = ep["rate"] * dt
-        pos = st.get("act", u[0])
+        pos = st.get("act", u[0]) if p.get("actuator", "carry") == "carry" else u[0]
         for i in range(n):
             pos += min(max(u[i] - pos, -r), r)
             u[i] = pos
@@ -85,6 +113,7 @@ def run(p: dict, st: dict, u, dt: float) -> np.ndarray:
     elif e == "input_deadzone":
         d = ep["delta"]
         u = np.where(np.abs(u) <= d, 0.0, u - d * np.sign(u))
+    w_start = _between_calls(p, st, float(u[0]), rng) if n else None
     v = _gear(u, {**p, "bow": ep if e == "curved_borders" else None}, st)
     # ------------------------------------------------------------ dynamics
     num, den = list(p["G"]["num"]), list(p["G"]["den"])
@@ -96,7 +125,7 @@ def run(p: dict, st: dict, u, dt: float) -> np.ndarray:
         w1 = ep["level"] * np.tanh(w1 / ep["level"])
         w = _lti(ep["num2"], ep["den2"], w1, dt)
     else:
-        w = _lti(num, den, v, dt)
+        w = _lti(num, den, v, dt, start=w_start)
     delay = p["G"].get("delay", 0.0) + (ep["delay"] if e == "time_delay" else 0.0)
     if delay > 0:
         k = delay / dt

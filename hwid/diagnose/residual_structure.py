@@ -4,8 +4,9 @@ Each test regresses the residual on one kind of signal the model lacks and asks 
 coefficients are zero. The residual is autocorrelated (coloured noise, and the model's error passes
 through G), so each regression is prewhitened by the residual's own AR filter (feasible GLS):
 
-* ``direction_of_motion`` - on the sign of the input's last move (held while the input rests): a
-  remainder that depends on which way the input last went (hysteresis, friction);
+* ``direction_of_motion`` - on the signs of the input's and the model output's last moves (held
+  while they rest): a remainder that depends on which way the plant last went (hysteresis,
+  friction, at the actuator or at the output shaft);
 * ``varying_gain`` - on the model output times the session time, with the model output itself as a
   control: a remainder that scales with the output and changes over the course of the tests;
 * ``loop`` - on past model outputs, the present one as a control: the remainder follows the output's
@@ -84,10 +85,11 @@ def gls_wald(r, X, controls=None, ar_order: int = 8) -> tuple[float, int]:
     return float(b @ np.linalg.pinv(cov[-q:, -q:]) @ b), q
 
 
-def last_direction(u) -> np.ndarray:
-    """+1 where the input last moved up, -1 where it last moved down, 0 before its first move."""
+def last_direction(u, tol: float = 0.0) -> np.ndarray:
+    """+1 where the signal last moved up, -1 where it last moved down (moves of ``tol`` or less
+    ignored), the first move's sign before it."""
     du = np.diff(np.asarray(u, float), prepend=u[0])
-    step = np.sign(du)
+    step = np.where(np.abs(du) > tol, np.sign(du), 0.0)
     idx = np.where(step != 0, np.arange(step.size), 0)
     np.maximum.accumulate(idx, out=idx)
     out = step[idx]
@@ -100,13 +102,22 @@ def _lagged(x, k: int) -> np.ndarray:
 
 
 def _test_direction(segs) -> tuple[float, int, str] | None:
+    """On the direction of the input's last move and of the model output's (a play or friction at
+    the actuator follows the first, one at the output shaft the second; G's lag tells them apart)."""
     r = np.concatenate([(s.y - s.y_model)[s.keep] for s in segs])
-    d = np.concatenate([last_direction(s.u)[s.keep] for s in segs])
-    if np.all(d == d[0]):
+    cols = {"input": np.concatenate([last_direction(s.u)[s.keep] for s in segs]),
+            "model output": np.concatenate([last_direction(s.y_model, 1e-9 * (np.ptp(s.y_model) or 1.0))[s.keep]
+                                            for s in segs])}
+    cols = {k: v for k, v in cols.items() if not np.all(v == v[0])}
+    if not cols:
         return None
-    stat, q = gls_wald(r, d)
-    shift = float(np.mean(r[d > 0]) - np.mean(r[d < 0])) if np.any(d > 0) and np.any(d < 0) else 0.0
-    return stat, q, f"the residual after rising inputs differs from that after falling ones by {shift:.3g}"
+    stat, q = gls_wald(r, np.column_stack(list(cols.values())))
+    parts = []
+    for name, d in cols.items():
+        if np.any(d > 0) and np.any(d < 0):
+            parts.append(f"after a rising {name} it differs from that after a falling one by "
+                         f"{float(np.mean(r[d > 0]) - np.mean(r[d < 0])):.3g}")
+    return stat, q, "the residual depends on the direction of motion: " + "; ".join(parts)
 
 
 def _test_varying_gain(segs) -> tuple[float, int, str] | None:

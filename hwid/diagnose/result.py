@@ -28,10 +28,11 @@ class DiagnosisResult:
     model: dict
     design: dict
     cost: dict
+    residual_structure: list
 
     def to_dict(self) -> dict:
         return {"verdict": self.verdict, "gap_before": self.gap_before, "gap_after": self.gap_after,
                 "noise_floor": self.noise_floor, "gap_model_refit": self.gap_model_refit,
                 "model_refit": self.model_refit, "where": self.where, "candidates": self.candidates,
                 "test": self.test, "noise": self.noise, "model": self.model, "design": self.design,
-                "cost": self.cost}
+                "cost": self.cost, "residual_structure": self.residual_structure}

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from hwid import HwidError, protocols
-from hwid.diagnose import experiments, gap, rank
+from hwid.diagnose import experiments, gap, rank, residual_structure
 from hwid.diagnose.baseline import has_outside_modes
 from hwid.diagnose.effects import BLOCK, CATALOGUE, ModelSim, Scale, catalogue
 from hwid.diagnose.result import DiagnosisResult
@@ -301,7 +301,15 @@ def _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, te
         model={**origin, **sim_model.to_dict()},
         design={"settle_s": design.settle_s, "omega_c": design.omega_c, "u_range": [design.u_lo, design.u_hi],
                 "amplitude": design.amplitude, "experiments": [e.name for e in val.exps]},
-        cost=dict(cost))
+        cost=dict(cost),
+        residual_structure=_remainder(val, val_exps) if name == "unexplained" else [])
+
+
+def _remainder(val: Validation, val_exps) -> list[dict]:
+    """What the validation residual of the model looks like, from tests on it (an unexplained gap)."""
+    segments = [residual_structure.Segment(e.u, y, x, val.design.dt, e.mask, e.variable.get("omega"))
+                for e, y, x in zip(val_exps, val.y_val, val.sim_val.x)]
+    return residual_structure.residual_structure(segments)
 
 
 def _echo_baseline(fitter, gap_before, gap_ref, floor, test, echo) -> None:
