@@ -341,6 +341,21 @@ def test_identified_model_error_is_not_an_alarm():
     assert gap_test(0.0120, 30000, nf, min_ratio=ID_MIN_RATIO).significant
 
 
+
+def _diagnose_paper_rig(tmp_path, driver: str, effects=None) -> dict:
+    """Diagnose the paper-plant rig ``driver`` with the paper's plant as ``--model`` (the paper's
+    staircases and sines as the config's protocols)."""
+    d = {"name": driver.replace("_", "-"), "seed": 11, "sampling": {"dt": 0.05},
+         "plant": {"kind": "external", "callable": f"diagnose_rigs:{driver}"},
+         "protocols": {"staircase": {"levels_up": [round(float(x), 4) for x in np.linspace(-1.4, 1.2, 10)],
+                                     "levels_down": [round(float(x), 4) for x in np.linspace(1.2, -1.4, 11)[1:]],
+                                     "hold": 30.0},
+                       "sine": {"amplitude": 1.0, "frequencies": [0.02, 0.05, 0.1, 0.2], "periods": 3}}}
+    (tmp_path / "paper.yaml").write_text(yaml.safe_dump({"plant": R.PAPER}))
+    (tmp_path / "cfg.yaml").write_text(yaml.safe_dump(d))
+    return diagnose(config.load(tmp_path / "cfg.yaml"), tmp_path / "out", model=tmp_path / "paper.yaml",
+                    echo=lambda *a: None, effects=effects)
+
 def test_input_clip_on_the_paper_plant_found_by_the_profile_scan(tmp_path):
     """The paper's plant behind an actuator clipping u to [-1.23, 0.73], the paper's plant as
     ``--model``. Seen through the paper's steep h, the clip's cost is a narrow valley: least
@@ -348,16 +363,7 @@ def test_input_clip_on_the_paper_plant_found_by_the_profile_scan(tmp_path):
     curved borders (2.7x) were named. With the profile scan both limits are found to within 0.01
     (the noise on ~10^4 samples places them far more finely; 0.01 is a tenth of the scan's own
     step) and what is left is noise."""
-    d = {"name": "paper-clip", "seed": 11, "sampling": {"dt": 0.05},
-         "plant": {"kind": "external", "callable": "diagnose_rigs:input_saturation_paper"},
-         "protocols": {"staircase": {"levels_up": [round(float(x), 4) for x in np.linspace(-1.4, 1.2, 10)],
-                                     "levels_down": [round(float(x), 4) for x in np.linspace(1.2, -1.4, 11)[1:]],
-                                     "hold": 30.0},
-                       "sine": {"amplitude": 1.0, "frequencies": [0.02, 0.05, 0.1, 0.2], "periods": 3}}}
-    (tmp_path / "paper.yaml").write_text(yaml.safe_dump({"plant": R.PAPER}))
-    (tmp_path / "cfg.yaml").write_text(yaml.safe_dump(d))
-    s = diagnose(config.load(tmp_path / "cfg.yaml"), tmp_path / "out", model=tmp_path / "paper.yaml",
-                 echo=lambda *a: None, effects=["input_saturation", "curved_borders"])
+    s = _diagnose_paper_rig(tmp_path, "input_saturation_paper", effects=["input_saturation", "curved_borders"])
     top = s["candidates"][0]
     t = R.TRUTH["input_saturation_paper"]
     assert s["verdict"]["effect"] == "input_saturation" == top["effect"]
@@ -372,16 +378,7 @@ def test_paper_plant_parked_between_calls_is_none(tmp_path):
     """The paper's plant (play 1.0, as wide as a third of the range) on a rig that parks its gear
     against a random border at the first input of every call, with its own simulator as
     ``--model``: the lead-ins must put the gear on a known border from either side."""
-    d = {"name": "paper-parked", "seed": 11, "sampling": {"dt": 0.05},
-         "plant": {"kind": "external", "callable": "diagnose_rigs:paper_at_rest"},
-         "protocols": {"staircase": {"levels_up": [round(float(x), 4) for x in np.linspace(-1.4, 1.2, 10)],
-                                     "levels_down": [round(float(x), 4) for x in np.linspace(1.2, -1.4, 11)[1:]],
-                                     "hold": 30.0},
-                       "sine": {"amplitude": 1.0, "frequencies": [0.02, 0.05, 0.1, 0.2], "periods": 3}}}
-    (tmp_path / "paper.yaml").write_text(yaml.safe_dump({"plant": R.PAPER}))
-    (tmp_path / "cfg.yaml").write_text(yaml.safe_dump(d))
-    s = diagnose(config.load(tmp_path / "cfg.yaml"), tmp_path / "out", model=tmp_path / "paper.yaml",
-                 echo=lambda *a: None)
+    s = _diagnose_paper_rig(tmp_path, "paper_at_rest")
     assert s["verdict"]["effect"] == "none", (s["verdict"], s["gap_before"] / s["noise_floor"])
     assert s["gap_before"] < 1.05 * s["noise_floor"]
 
