@@ -96,18 +96,40 @@ def identify_nonlinear(config: Path = typer.Argument(..., help="Config YAML."),
                                                            "staircases (default: run them on the config's plant)."),
                        out: Path = typer.Option(..., "--out", help="Output directory (nonlinear.h5 goes here)."),
                        json_out: Optional[Path] = typer.Option(None, "--json", help="Also write the result as JSON.")):
-    """Stage 1 (Section 4): staircases -> h, the backlash borders and their type; OUT/nonlinear.h5."""
+    """Stage 1 (Section 4): staircases -> h, the backlash borders and their type; OUT/nonlinear.h5.
+    For a recorded plant: stage 1 from its levels in whatever order they were recorded; OUT/history.h5."""
     from hwid.config import load as load_config
     from hwid.identify.nonlinear import identify_nonlinear as run_stage1
     from hwid.identify.result import format_summary
     from hwid.results import write_json, write_nonlinear
     cfg = load_config(config)
     out = _out_dir(out)
+    if cfg.plant.kind == "recorded":
+        _identify_history(cfg, out, json_out)
+        return
     res, records = run_stage1(cfg, data=data, journal_dir=out / "rig_journal")
     path = write_nonlinear(out, cfg, res, records)
     if json_out is not None:
         write_json(json_out, res.to_dict())
     typer.echo(format_summary(res))
+    for msg in res.warnings:
+        typer.echo(f"warning: {msg}", err=True)
+    typer.echo(f"wrote {path}")
+
+
+def _identify_history(cfg, out: Path, json_out: Optional[Path]) -> None:
+    """Stage 1 of a recorded plant from its levels (``hwid.identify.history``)."""
+    from hwid.identify.history import identify_history
+    from hwid.identify.result import format_history
+    from hwid.recorded import load_records
+    from hwid.results import write_history, write_json
+    nl = cfg.identification.nonlinear
+    types = ("backlash", "backlash_inverse") if nl.input_type == "auto" else (nl.input_type,)
+    res = identify_history(load_records(cfg), cfg.plant.output_resolution, nl.max_degree, types)
+    path = write_history(out / "history.h5", cfg, res)
+    if json_out is not None:
+        write_json(json_out, res.to_dict())
+    typer.echo(format_history(res))
     for msg in res.warnings:
         typer.echo(f"warning: {msg}", err=True)
     typer.echo(f"wrote {path}")

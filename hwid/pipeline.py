@@ -78,25 +78,44 @@ def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
 
 
 def _run_recorded(cfg, out: Path, report: bool, echo) -> dict:
-    """A recorded plant: its records to ``simulation.h5``, then the whole-model fit on them (the
-    stages need hwid's own staircases and sines)."""
+    """A recorded plant: its records to ``simulation.h5``; stage 1 from their levels where they hold
+    enough (``history.h5``); the whole-model fit on them when ``identification.whole.enabled``."""
+    from hwid.identify.history import identify_history
     from hwid.identify.whole import WholeModelFit
     from hwid.recorded import describe, load_records
-    if not cfg.identification.whole.enabled:
-        raise HwidError(f"{cfg.source_path}: a recorded plant is identified by the whole-model fit; set "
-                        "identification.whole.enabled: true (the stages need hwid's own staircases and sines)")
+    from hwid.results import write_history
     times: dict[str, float] = {}
     paths: dict[str, Path] = {}
     t0 = time.perf_counter()
     records = load_records(cfg)
     paths["simulation"] = write_simulation(out / "simulation.h5", cfg, records, None)
     echo(f"records: {describe(records)}")
-    fit = WholeModelFit.from_config(cfg).fit(records)
-    paths["whole"] = write_whole(out / "whole.h5", cfg, fit.result_)
-    times["whole"] = time.perf_counter() - t0
-    res = fit.result_
-    echo(f"whole model: {res.type}, d+ = {res.d_plus:.4g}, S^d = {res.slope_down:.4g}, d- = {res.d_minus:.4g}, "
-         f"h degree {len(res.h_coefficients) - 1}, G {res.structure}, sigma {res.sigma:.4g} ({times['whole']:.1f} s)")
+    nl = cfg.identification.nonlinear
+    try:
+        hist = identify_history(records, cfg.plant.output_resolution, nl.max_degree,
+                                ("backlash", "backlash_inverse") if nl.input_type == "auto" else (nl.input_type,))
+    except HwidError as err:
+        if not cfg.identification.whole.enabled:
+            raise HwidError(f"{cfg.source_path}: {err}; set identification.whole.enabled: true to fit the whole "
+                            "model on any input") from None
+        echo(f"stage 1 from the levels: skipped ({err})")
+    else:
+        paths["history"] = write_history(out / "history.h5", cfg, hist)
+        times["history"] = time.perf_counter() - t0
+        echo(f"stage 1 from the levels: {hist.type}, d+ = {hist.d_plus:.4g}, d- = {hist.d_minus:.4g}, dead band "
+             f"{hist.dead_band:.4g} [{hist.ci['dead_band'][0]:.4g}, {hist.ci['dead_band'][1]:.4g}], "
+             f"S^d = {hist.slope_down:.4g}{' (MISFIT)' if hist.misfit else ''}")
+        for w in hist.warnings:
+            echo(f"warning: {w}")
+    if cfg.identification.whole.enabled:
+        t0 = time.perf_counter()
+        fit = WholeModelFit.from_config(cfg).fit(records)
+        paths["whole"] = write_whole(out / "whole.h5", cfg, fit.result_)
+        times["whole"] = time.perf_counter() - t0
+        res = fit.result_
+        echo(f"whole model: {res.type}, d+ = {res.d_plus:.4g}, S^d = {res.slope_down:.4g}, d- = {res.d_minus:.4g}, "
+             f"h degree {len(res.h_coefficients) - 1}, G {res.structure}, sigma {res.sigma:.4g} "
+             f"({times['whole']:.1f} s)")
     if report:
         from hwid.report.html import write_report
         paths["report"] = write_report(out)

@@ -28,7 +28,7 @@ import h5py
 import numpy as np
 
 from hwid import HwidError, __version__
-from hwid.identify.result import LinearResult, NonlinearResult, WholeResult, plain
+from hwid.identify.result import HistoryResult, LinearResult, NonlinearResult, WholeResult, plain
 from hwid.plant import Record
 
 FORMAT = 1
@@ -559,6 +559,25 @@ def write_whole(path: str | Path, cfg, result: WholeResult) -> Path:
         write_provenance(f, "whole", cfg)
         f.attrs["result"] = json.dumps(result.to_dict(), default=_json_default)
     return path
+
+
+def write_history(path: str | Path, cfg, result: HistoryResult) -> Path:
+    """Write ``history.h5`` (``hwid_kind = "history"``): stage 1 from a recorded history, its plain
+    data (:meth:`HistoryResult.to_dict`) as the root attribute ``result`` (JSON)."""
+    path = Path(path)
+    with atomic_h5(path) as f:
+        write_provenance(f, "history", cfg)
+        f.attrs["result"] = json.dumps(result.to_dict(), default=_json_default)
+    return path
+
+
+def read_history(path: str | Path, cfg=None) -> HistoryResult:
+    """The :class:`HistoryResult` of ``history.h5``."""
+    with open_results(path, "history", cfg) as f:
+        try:
+            return HistoryResult.from_dict(json.loads(f.attrs["result"]))
+        except (KeyError, ValueError, TypeError) as err:
+            raise ResultsError(f"{path}: not a complete stage-1 history result ({type(err).__name__}: {err})") from None
 
 
 def read_whole(path: str | Path, cfg=None) -> WholeResult:

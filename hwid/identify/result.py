@@ -276,3 +276,75 @@ def format_summary(result: NonlinearResult) -> str:
         tag = "up  " if j <= n_up else "down"
         lines.append(f"    {tag:>20} {j:3d}  {u:+8.4f}  {x:+12.6f}  {s:9.2e}")
     return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class Level:
+    """One settled level: the record it belongs to, its place in that record's sequence, the
+    input, the settled output and its standard error, and the samples averaged."""
+
+    record: str
+    index: int
+    u: float
+    x: float
+    se: float
+    n: int
+    scored: bool = True
+
+
+@dataclass(frozen=True)
+class HistoryResult:
+    """Stage 1 from a recorded history (:mod:`hwid.identify.history`); ``to_dict()`` is its JSON:
+    the borders, ``dead_band = d_plus - d_minus``, h_bar, 95 % intervals (``ci``), the chi-square of
+    the levels against their own standard errors with ``misfit`` when it rejects, every level used
+    and the selection table."""
+
+    type: str
+    slope_down: float
+    d_plus: float
+    d_minus: float
+    h_coefficients: tuple
+    ci: dict
+    chi2: float
+    dof: int
+    p_value: float
+    misfit: bool
+    levels: tuple
+    table: tuple
+    warnings: tuple = field(default=())
+
+    @property
+    def dead_band(self) -> float:
+        return self.d_plus - self.d_minus
+
+    def to_dict(self) -> dict:
+        return {"type": self.type, "slope_up": 1.0, "slope_down": self.slope_down, "d_plus": self.d_plus,
+                "d_minus": self.d_minus, "dead_band": self.dead_band, "h_coefficients": list(self.h_coefficients),
+                "ci": {k: ([list(p) for p in v] if k == "h_coefficients" else list(v)) for k, v in self.ci.items()},
+                "chi2": self.chi2, "dof": self.dof,
+                "p_value": self.p_value, "misfit": self.misfit,
+                "levels": [vars(lv) for lv in self.levels], "selection": list(self.table),
+                "warnings": list(self.warnings)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "HistoryResult":
+        ci = {k: tuple(v) for k, v in d["ci"].items() if k != "h_coefficients"}
+        ci["h_coefficients"] = [tuple(v) for v in d["ci"]["h_coefficients"]]
+        return cls(d["type"], float(d["slope_down"]), float(d["d_plus"]), float(d["d_minus"]),
+                   tuple(d["h_coefficients"]), ci, float(d["chi2"]), int(d["dof"]), float(d["p_value"]),
+                   bool(d["misfit"]), tuple(Level(**lv) for lv in d["levels"]), tuple(d["selection"]),
+                   tuple(d["warnings"]))
+
+
+def format_history(res: HistoryResult) -> str:
+    """The CLI's text summary of stage 1 from a recorded history."""
+    ci = res.ci
+    lines = [f"stage 1 from the recorded levels: {res.type}{'  (MISFIT: see the warning)' if res.misfit else ''}",
+             f"  d+ = {res.d_plus:.6g}  [{ci['d_plus'][0]:.6g}, {ci['d_plus'][1]:.6g}]",
+             f"  d- = {res.d_minus:.6g}  [{ci['d_minus'][0]:.6g}, {ci['d_minus'][1]:.6g}]",
+             f"  dead band d+ - d- = {res.dead_band:.6g}  [{ci['dead_band'][0]:.6g}, {ci['dead_band'][1]:.6g}]",
+             f"  S^d = {res.slope_down:.6g}  [{ci['slope_down'][0]:.6g}, {ci['slope_down'][1]:.6g}]",
+             f"  h_bar degree {len(res.h_coefficients) - 1}: {', '.join(f'{c:.4g}' for c in res.h_coefficients)}",
+             f"  {sum(lv.scored for lv in res.levels)} levels scored; chi2 = {res.chi2:.4g} on {res.dof} dof "
+             f"(p = {res.p_value:.2g})"]
+    return "\n".join(lines)

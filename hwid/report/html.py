@@ -242,6 +242,8 @@ def render_html(run: RunData, items: list[FigureItem], pngs: dict[str, bytes],
                   "<h3>Table 2: frequency gain estimates</h3>", tables.table2_html(run), section_figures("stage2")]
     if run.batch is not None:
         parts += ["<h2>Monte Carlo batch</h2>", tables.batch_table_html(run.batch), section_figures("batch")]
+    if run.history is not None:
+        parts += ["<h2>Stage 1 from the recorded levels</h2>", tables.history_html(run.history)]
     if run.whole is not None:
         parts += ["<h2>The whole model by output error (identification.whole)</h2>", tables.whole_html(run.whole)]
     if run.compare is not None:

@@ -10,6 +10,7 @@
 ``diagnosis.h5``       ``hwid diagnose`` (:func:`hwid.results.read_diagnosis`)
 ``compare.h5``         ``hwid compare`` (:func:`hwid.results.read_compare`)
 ``whole.h5``           the whole-model fit (:func:`hwid.results.read_whole`)
+``history.h5``         stage 1 from a recorded history (:func:`hwid.results.read_history`)
 =====================  =========================================================================
 
 Every file is read through :mod:`hwid.results`; the stage results come back as the writers' own
@@ -26,13 +27,14 @@ import numpy as np
 from hwid import HwidError, config, paper
 from hwid.blocks.linear import LinearBlock
 from hwid.blocks.static import PiecewiseH, PolynomialH
-from hwid.identify.result import LinearResult, NonlinearResult, WholeResult
+from hwid.identify.result import HistoryResult, LinearResult, NonlinearResult, WholeResult
 from hwid.model import HWModel, InputNonlinearity, from_config
 from hwid.plant import Record
 from hwid.results import (ResultsError, open_results, read_batch_summary, read_compare, read_diagnosis, read_dict,
-                          read_linear, read_nonlinear, read_records, read_whole)
+                          read_history, read_linear, read_nonlinear, read_records, read_whole)
 
-FILES = ("simulation.h5", "nonlinear.h5", "linear.h5", "batch.h5", "diagnosis.h5", "compare.h5", "whole.h5")
+FILES = ("simulation.h5", "nonlinear.h5", "linear.h5", "batch.h5", "diagnosis.h5", "compare.h5", "whole.h5",
+         "history.h5")
 
 # The signals the figures draw: a staircase's input, output and undisturbed output; a sine's output
 # and undisturbed output (its input, as long as its output, is not read). v, w, z are never read.
@@ -57,6 +59,7 @@ class RunData:
     diagnosis: dict | None = None                 # hwid.results.read_diagnosis(...)
     compare: dict | None = None                   # hwid.results.read_compare(...)
     whole: WholeResult | None = None              # the whole-model fit
+    history: HistoryResult | None = None          # stage 1 from a recorded history
     notes: tuple[str, ...] = ()                   # what is missing, what could not be shown
 
     @property
@@ -109,8 +112,9 @@ def load_run(directory: str | Path) -> RunData:
             notes.append(f"diagnosis.h5 could not be read ({err})")
     compare = read_compare(directory / "compare.h5") if present["compare.h5"] else None
     whole = read_whole(directory / "whole.h5", cfg) if present["whole.h5"] else None
+    history = read_history(directory / "history.h5", cfg) if present["history.h5"] else None
     return RunData(directory, present, provenance, cfg, config_name, records, truth, nonlinear, linear,
-                   batch, diagnosis, compare, whole, tuple(notes))
+                   batch, diagnosis, compare, whole, history, tuple(notes))
 
 
 def _present_files(directory: Path) -> dict[str, bool]:

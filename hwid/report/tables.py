@@ -277,6 +277,32 @@ def whole_html(whole) -> str:
             f"<details><summary>selection (BIC penalty on F and G, AIC on ĥ; smallest first)</summary><table>{''.join(selection)}</table></details>")
 
 
+def history_html(hist) -> str:
+    """Stage 1 from a recorded history: estimates with 95 % intervals, the fit's chi-square (a
+    misfit said as such), every settled level used, and the selection table."""
+    rows = [_tr(["parameter", "estimate", "95 % interval"], True)]
+    for name in ("d_plus", "d_minus", "dead_band", "slope_down"):
+        lo, hi = hist.ci[name]
+        rows.append(_tr([name, _num(getattr(hist, name)), f"[{_num(lo)}, {_num(hi)}]"]))
+    for i, (c, (lo, hi)) in enumerate(zip(hist.h_coefficients, hist.ci["h_coefficients"])):
+        if i:
+            rows.append(_tr([f"h_bar c{i}", _num(c), f"[{_num(lo)}, {_num(hi)}]"]))
+    levels = [_tr(["record", "#", "u", "settled output", "standard error", "samples", "scored"], True)]
+    for lv in hist.levels:
+        levels.append(_tr([_html.escape(lv.record), str(lv.index), _num(lv.u), _num(lv.x), _num(lv.se), str(lv.n),
+                           "yes" if lv.scored else "no (state unknown)"]))
+    selection = [_tr(["type", "degree", "chi2", "criterion"], True)]
+    for s in sorted(hist.table, key=lambda s: s["criterion"]):
+        selection.append(_tr([s["type"], str(s["degree"]), _num(s["chi2"]), _num(s["criterion"], 6)]))
+    verdict = (f"<b>a misfit</b>: chi2 = {_num(hist.chi2)} on {hist.dof} dof (p = {hist.p_value:.2g}); the "
+               "estimates do not rest on a model that reaches the levels' noise" if hist.misfit else
+               f"chi2 = {_num(hist.chi2)} on {hist.dof} dof (p = {hist.p_value:.2g})")
+    return (f"<p>{hist.type}; {verdict}.</p><table id='history'>{''.join(rows)}</table>"
+            f"<details><summary>settled levels ({len(hist.levels)})</summary><table>{''.join(levels)}</table></details>"
+            f"<details><summary>selection (BIC charge on F, AIC on ĥ; smallest first)</summary>"
+            f"<table>{''.join(selection)}</table></details>")
+
+
 # ------------------------------------------------------------------- model, warnings, provenance
 
 def _nonlinear_model_rows(nl) -> list[tuple[str, str]]:

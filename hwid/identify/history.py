@@ -1,0 +1,325 @@
+"""Stage 1 from any piecewise-constant history (recorded levels in any order, of any length).
+
+The paper's stage 1 (Section 4) reads the settled outputs of two monotone staircases. A lab's log
+holds levels in whatever order the operator chose: here each level's settled output is predicted
+as ``X_k = h_bar(F_bar[u_1..u_k])`` (eqs. 4a, 4c with ``G(0) = 1``, eqs. 7a-b and 14a-b), with the
+steady recursion of F run over the *recorded* sequence of levels, so which border or flat path each
+level sits on follows from the data and the parameters, not from an assumed lead-in. The state at
+a record's first level is unknown: for a backlash, the gear's place inside the play there is a
+nuisance parameter; for a Backlash-Inverse the first level's direction is unknown and that level
+is not scored.
+
+Settled outputs: the settle time is found from the data (:func:`settle_constant`: one time
+constant for every level's approach through h, five of them left out of each level); what remains of a level,
+when at least 20 samples, goes to :func:`hwid.identify.steady.steady_levels` (any transient left
+found from the data again, batch-means standard errors); shorter ones by extrapolating their
+approach with the common time constant (:func:`_extrapolated`), or, shorter than 6 samples, from
+their last half when it is evidently steady (spread within two output quanta or three noise standard
+deviations, the noise from the levels' successive differences), otherwise left out with one line
+saying how many samples would be needed.
+Quantised outputs: a settled level read to the nearest count carries ``q / sqrt(12)`` that
+averaging does not remove, so every standard error is at least that.
+
+Fit: weighted least squares on ``(X_k - h_bar(v_k)) / se_k``; h_bar's coefficients (no constant,
+``h_bar(0) = 0``) solved for at every step (variable projection); type and degree chosen by the
+criterion of :mod:`hwid.identify.whole` (BIC's charge on F and the nuisances, AIC's on h_bar).
+Intervals: 95 %, Gauss-Newton with the standard errors as given, widened by ``sqrt(chi2 / dof)``
+when that exceeds 1 (the Birge ratio); when the chi-square says the
+model does not reach the levels' own noise (p < 0.01) the fit is a **misfit** and the result says
+so (``misfit: true``), it is not printed as
+if sound.
+"""
+from __future__ import annotations
+
+import json
+import numpy as np
+from scipy import optimize, stats
+
+from hwid import HwidError
+from hwid.identify.joint_fit import numeric_jacobian
+from hwid.identify.result import HistoryResult, Level
+from hwid.identify.steady import steady_levels
+
+#: fewest samples ``steady_levels`` averages; shorter levels go through :func:`_short_level`
+MIN_STEADY = 20
+#: settle time, in the levels' common time constants, left out of every level before it is averaged
+SETTLE_TAUS = 5.0
+
+
+def settled_levels(records, resolution: float | None = None) -> tuple[list[Level], list[str]]:
+    """The settled levels of every record (attribute ``segments`` from :mod:`hwid.recorded`, or the
+    piecewise-constant stretches of ``u``), with their standard errors; and the warnings."""
+    from hwid.recorded import level_segments
+    warns: list[str] = []
+    per_record = []
+    for r in records:
+        segs = json.loads(r.attrs["segments"]) if "segments" in r.attrs else level_segments(np.asarray(r.u, float))
+        q = resolution if resolution is not None else (float(r.attrs.get("output_resolution", 0.0)) or None)
+        per_record.append((r, segs, q))
+    segments = [np.asarray(r.y[s["start"]:s["stop"]], float) for r, segs, _ in per_record for s in segs]
+    sigma = _robust_sigma(segments)
+    tau = settle_constant(segments)
+    cut = int(np.ceil(SETTLE_TAUS * tau))
+    long = [(r, s) for r, segs, _ in per_record for s in segs if s["stop"] - s["start"] - cut >= MIN_STEADY]
+    steady = {}
+    if long:
+        st = steady_levels([np.asarray(r.y[s["start"] + cut:s["stop"]], float) for r, s in long])
+        for (r, s), mean, se, n in zip(long, st.mean, st.se, st.n):
+            steady[r.name, s["start"]] = (float(mean), float(se), int(n))
+        warns += list(st.warnings)
+    levels: list[Level] = []
+    for r, segs, q in per_record:
+        k = 0
+        for s in segs:
+            y = np.asarray(r.y[s["start"]:s["stop"]], float)
+            got = (steady.get((r.name, s["start"])) or _extrapolated(y, tau, max(sigma, (q or 0.0) / np.sqrt(12.0)))
+                   or _short_level(y, q, sigma))
+            if got is None:
+                warns.append(f"{r.name}: the level at u = {s['value']:.6g} (samples {s['start']}-{s['stop']}) is "
+                             f"still moving at its end; holds of at least {MIN_STEADY} samples are needed to find "
+                             "its steady state: left out")
+                continue
+            mean, se, n = got
+            if q:
+                se = float(np.hypot(se, q / np.sqrt(12.0)))
+            levels.append(Level(r.name, k, float(s["value"]), mean, se, n))
+            k += 1
+    return levels, warns
+
+
+def settle_constant(segments, skip: int = 1) -> float:
+    """The time constant (samples) of the levels' approach to their steady states, common to all:
+    ``y = X_k + A_k exp(-t / tau) + B_k exp(-2 t / tau)`` (:func:`_approach`) fitted to every level
+    of at least 8 samples (X_k, A_k, B_k solved for, ``tau`` on a log grid from 0.3 samples to half the longest level; the first ``skip``
+    samples, where G's faster modes and the hold's own delay act, left out)."""
+    segs = [y[skip:] for y in segments if y.size >= 8 + skip]
+    if not segs:
+        return 0.0
+    def cost(log_tau: float) -> float:
+        total = 0.0
+        for y in segs:
+            a = _approach(y.size, np.exp(log_tau))
+            e = y - a @ np.linalg.lstsq(a, y, rcond=None)[0]
+            total += float(e @ e)
+        return total
+
+    grid = np.log(np.geomspace(0.3, max(segs, key=len).size / 2, 40))
+    k = int(np.argmin([cost(g) for g in grid]))
+    lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
+    return float(np.exp(optimize.minimize_scalar(cost, bounds=(lo, hi), method="bounded",
+                                                 options={"xatol": 1e-4}).x))
+
+
+def _approach(n: int, tau: float) -> np.ndarray:
+    """Columns ``1, exp(-t / tau), exp(-2 t / tau)``: G's slowest mode seen through h (a
+    polynomial of an exponential approach holds its powers; the square is the largest that lasts)."""
+    e = np.exp(-np.arange(n) / tau)
+    return np.column_stack([np.ones(n), e, e * e])
+
+
+def _robust_sigma(segments) -> float:
+    """The output noise's standard deviation from successive differences inside the levels (median
+    absolute difference: steps, transients and pushes inside a level do not inflate it)."""
+    d = np.concatenate([np.diff(y) for y in segments if y.size > 1] or [np.zeros(1)])
+    return float(1.4826 * np.median(np.abs(d)) / np.sqrt(2.0))
+
+
+def _extrapolated(y: np.ndarray, tau: float, sigma: float, skip: int = 1):
+    """``(X, se, n)`` of a level too short to settle: :func:`_approach` with the levels' common
+    ``tau``, fitted from its second sample on. None -- the level is not extrapolated -- when it
+    holds fewer than 6 samples or fewer than 3 time constants (the steady state would be a guess),
+    when it settled long ago (:func:`_short_level` takes it), or when the approach does not follow
+    the exponential to within 1.5 noise standard deviations ``sigma`` (a controller's ramp, a push)."""
+    y = y[skip:]
+    if y.size < 6 or tau <= 0 or not 3 * tau <= y.size <= 30 * tau:
+        return None
+    a = _approach(y.size, tau)
+    coef = np.linalg.lstsq(a, y, rcond=None)[0]
+    e = y - a @ coef
+    if float(np.sqrt(np.mean(e * e))) > 1.5 * sigma:
+        return None
+    cov = np.linalg.pinv(a.T @ a)
+    return float(coef[0]), float(max(sigma, 1e-300) * np.sqrt(cov[0, 0])), int(y.size)
+
+
+def _short_level(y: np.ndarray, q: float | None, sigma: float):
+    """``(mean, se, n)`` of a short level's last half (at least 3 samples) when it is evidently
+    steady -- its spread within two output quanta or three noise standard deviations -- else None."""
+    tail = y[y.size // 2:]
+    if tail.size < 3:
+        return None
+    tol = max(2.0 * (q or 0.0), 3.0 * sigma)
+    if tol == 0.0 or np.ptp(tail) > tol:
+        return None
+    return float(tail.mean()), float(sigma / np.sqrt(tail.size)), int(tail.size)
+
+
+class HistoryFit:
+    """Stage 1 on recorded levels (module docstring).
+
+    Parameters
+    ----------
+    max_degree : int
+        Highest degree of h_bar tried.
+    types : sequence of str
+        Input nonlinearity types tried.
+    """
+
+    def __init__(self, max_degree: int = 5, types=("backlash", "backlash_inverse")):
+        self.max_degree = max_degree
+        self.types = tuple(types)
+
+    def fit(self, levels: list[Level], warnings=()) -> "HistoryFit":
+        if len(levels) < 4:
+            raise HwidError(f"stage 1 from a recorded history needs at least 4 settled levels; found {len(levels)}")
+        names = list(dict.fromkeys(lv.record for lv in levels))
+        u = np.array([lv.u for lv in levels])
+        width = float(np.ptp(u)) or 1.0
+        table, best = [], None
+        for kind in self.types:
+            prob = _Problem(levels, names, kind)
+            for degree in range(1, self.max_degree + 1):
+                prob = _Problem(levels, names, kind, degree)
+                if prob.n <= prob.n_outer + degree:
+                    break
+                sol = None
+                for theta0 in prob.starts(width):
+                    trial = optimize.least_squares(prob.residual, theta0, method="trf", max_nfev=400,
+                                                   bounds=prob.bounds(width))
+                    if sol is None or trial.cost < sol.cost:
+                        sol = trial
+                chi2 = float(sol.fun @ sol.fun)
+                crit = chi2 + np.log(prob.n) * prob.n_outer + 2 * degree
+                table.append({"type": kind, "degree": degree, "chi2": chi2, "criterion": float(crit)})
+                if best is None or crit < best[0]:
+                    best = (crit, prob, sol.x)
+        if best is None:
+            raise HwidError(f"stage 1 from a recorded history: {len(levels)} settled levels cannot determine "
+                            "F and h (more levels, at more inputs, are needed)")
+        _, prob, theta = best
+        self.problem_, self.theta_ = prob, theta
+        self.result_ = self._result(prob, theta, tuple(table), list(warnings))
+        return self
+
+    @staticmethod
+    def _result(prob: "_Problem", theta, table, warns) -> HistoryResult:
+        c = prob.h(theta)
+        full = np.concatenate([theta, c])
+        r = prob.full_residual(full)
+        chi2 = float(r @ r)
+        dof = max(prob.n - full.size, 1)
+        p = float(stats.chi2.sf(chi2, dof))
+        misfit = p < 0.01
+        jac = numeric_jacobian(prob.full_residual, full)
+        norms = np.sqrt(np.sum(jac * jac, axis=0))
+        norms[norms == 0] = 1.0
+        cov = np.linalg.pinv((jac / norms).T @ (jac / norms)) / np.outer(norms, norms)
+        # the levels' standard errors come from a few dozen samples each: where the chi-square
+        # says they were optimistic, the intervals follow it (Birge ratio), never the other way
+        cov = cov * max(1.0, chi2 / dof)
+        if misfit:
+            warns.append(f"misfit: chi2 = {chi2:.4g} on {dof} dof (p = {p:.2g}); the model does not reach the "
+                         f"levels' own noise, intervals widened by sqrt(chi2/dof) = {np.sqrt(chi2 / dof):.3g}")
+        z = stats.norm.ppf(0.975)
+        ci = {}
+        for name, g in {"d_plus": [1, 0, 0], "slope_down": [0, np.exp(theta[1]), 0],
+                        "d_minus": [1, 0, -np.exp(theta[2])], "dead_band": [0, 0, np.exp(theta[2])]}.items():
+            grad = np.zeros(full.size)
+            grad[:3] = g
+            value = {"d_plus": theta[0], "slope_down": np.exp(theta[1]), "d_minus": theta[0] - np.exp(theta[2]),
+                     "dead_band": np.exp(theta[2])}[name]
+            sd = float(np.sqrt(max(grad @ cov @ grad, 0.0)))
+            ci[name] = (float(value - z * sd), float(value + z * sd))
+        sd_c = np.sqrt(np.clip(np.diag(cov)[prob.n_outer:], 0, None))
+        ci["h_coefficients"] = [(0.0, 0.0)] + [(float(a - z * s), float(a + z * s)) for a, s in zip(c, sd_c)]
+        levels = tuple(Level(lv.record, lv.index, lv.u, lv.x, lv.se, lv.n, bool(s))
+                       for lv, s in zip(prob.levels, prob.scored))
+        return HistoryResult(prob.type, float(np.exp(theta[1])), float(theta[0]), float(theta[0] - np.exp(theta[2])),
+                             tuple([0.0] + [float(a) for a in c]), ci, chi2, int(dof), p, bool(misfit), levels,
+                             table, tuple(warns))
+
+
+class _Problem:
+    """The levels and the fixed choices of one fit (type, degree)."""
+
+    def __init__(self, levels, names, kind: str, degree: int = 1):
+        self.levels, self.names, self.type, self.degree = levels, names, kind, degree
+        self.by_record = [[i for i, lv in enumerate(levels) if lv.record == name] for name in names]
+        self.scored = np.ones(len(levels), bool)
+        if kind != "backlash":
+            for idx in self.by_record:
+                self.scored[idx[0]] = False
+        self.x = np.array([lv.x for lv in levels])[self.scored]
+        self.se = np.array([lv.se for lv in levels])[self.scored]
+
+    @property
+    def n(self) -> int:
+        return int(self.scored.sum())
+
+    @property
+    def n_outer(self) -> int:
+        return 3 + (len(self.names) if self.type == "backlash" else 0)
+
+    def starts(self, width: float) -> list[np.ndarray]:
+        out = []
+        for a in (-0.1, 0.0, 0.1):
+            for b in (0.02, 0.1, 0.3):
+                for frac in ((-6.0, 0.0, 6.0) if self.type == "backlash" else (0.0,)):
+                    out.append(np.array([a * width, 0.0, np.log(b * width)]
+                                        + [frac] * (self.n_outer - 3)))
+        costs = [float(np.sum(self.residual(t) ** 2)) for t in out]
+        order = np.argsort(costs)
+        return [out[i] for i in order[:4]]
+
+    def bounds(self, width: float):
+        lo = [-2.0 * width, np.log(0.05), np.log(1e-6 * width)] + [-30.0] * (self.n_outer - 3)
+        hi = [2.0 * width, np.log(20.0), np.log(2.0 * width)] + [30.0] * (self.n_outer - 3)
+        return np.array(lo), np.array(hi)
+
+    def v(self, theta) -> np.ndarray:
+        """``F_bar`` run over each record's levels (eqs. 7a-b, 14a-b), slope_up = 1."""
+        dp, sd, dm = theta[0], np.exp(theta[1]), theta[0] - np.exp(theta[2])
+        v = np.empty(len(self.levels))
+        for j, idx in enumerate(self.by_record):
+            if self.type == "backlash":
+                u0 = self.levels[idx[0]].u
+                lo, hi = u0 - dp, sd * (u0 - dm)
+                g = lo + (0.5 * (1 + np.tanh(0.5 * theta[3 + j]))) * (hi - lo)
+                for i in idx:
+                    u = self.levels[i].u
+                    g = min(max(g, u - dp), max(sd * (u - dm), u - dp))
+                    v[i] = g
+            else:
+                prev, g = None, 0.0
+                for i in idx:
+                    u = self.levels[i].u
+                    if prev is not None and u > prev:
+                        g = u + dp
+                    elif prev is not None and u < prev:
+                        g = u / sd + dm
+                    v[i] = g
+                    prev = u
+        return v[self.scored]
+
+    def design(self, v) -> np.ndarray:
+        return np.vander(v, self.degree + 1, increasing=True)[:, 1:] / self.se[:, None]
+
+    def h(self, theta) -> np.ndarray:
+        a = self.design(self.v(theta))
+        return np.linalg.lstsq(a, self.x / self.se, rcond=None)[0]
+
+    def residual(self, theta) -> np.ndarray:
+        a = self.design(self.v(theta))
+        b = self.x / self.se
+        return b - a @ np.linalg.lstsq(a, b, rcond=None)[0]
+
+    def full_residual(self, full) -> np.ndarray:
+        theta, c = full[:self.n_outer], full[self.n_outer:]
+        return self.x / self.se - self.design(self.v(theta)) @ c
+
+
+def identify_history(records, resolution: float | None = None, max_degree: int = 5,
+                     types=("backlash", "backlash_inverse")) -> HistoryResult:
+    """Settle every level of ``records`` and fit stage 1 on them (the module docstring)."""
+    levels, warns = settled_levels(records, resolution)
+    return HistoryFit(max_degree, types).fit(levels, warns).result_
