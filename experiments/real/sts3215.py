@@ -1,0 +1,147 @@
+"""The STS3215 servo logs (../shared/data/real/sts3215/, CC BY 4.0, roboninecom/Measuring-Backlash-
+in-Popular-UART-Servos): what hwid finds on them, side by side with the authors' own measurement.
+
+The stand holds motor 5's target and pulls its output lever one way, then the other, with two
+puller servos (motors 3 and 4); between pulls both pullers relax. Three figures, each a different
+physical quantity:
+
+* **authors, loaded / unloaded** -- the authors' definition, reimplemented here from their paper's
+  description and ``log_calc.py`` (not copied): while motor 5's target is home (2047), the mean
+  position of motor 5 while motor 3 pulls (target 2147, within 100 counts of it) against that while
+  motor 4 pulls (target 1947); and the same over the first relaxed stretch after each pull (both
+  pullers at their relaxed targets 1747 / 2347 and within 4 counts). This is the gear's play as a
+  load moves the output through it, the servo's position loop holding the motor.
+* **hwid, branch gap** -- the settled position at the same target approached from below and from
+  above, before any pull (the relaxed samples right after the target step): what the servo's
+  position loop and its gear together leave between the two directions of approach.
+* **hwid, stage 1 from the log's levels** (:mod:`hwid.identify.history`) on the settled, unpushed
+  levels: the dead band ``d+ - d-`` of the backlash that maps target to measured position, with its
+  95 % interval; and on the log as recorded (pushes included), what ``hwid identify-nonlinear``
+  gives on ``configs/recorded_sts3215.yaml``.
+
+Usage: ``python experiments/real/sts3215.py [CSV ...]`` (default: every log in the folder whose
+motor 5 is the device under test). Prints one table row per log.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from hwid.identify.history import HistoryFit
+from hwid.identify.result import Level
+
+FOLDER = Path(__file__).resolve().parents[3] / "shared" / "data" / "real" / "sts3215"
+HOME, DUT = 2047, 5
+PULLERS = {3: {"relaxed": 1747, "pull": 2147}, 4: {"relaxed": 2347, "pull": 1947}}
+DEGREES_PER_COUNT = 360.0 / 4096
+
+
+def col(kind: str, motor: int) -> str:
+    return f"{kind} ({motor})"
+
+
+def relaxed(df: pd.DataFrame) -> np.ndarray:
+    ok = np.ones(len(df), bool)
+    for m, p in PULLERS.items():
+        ok &= (df[col("target pos", m)] == p["relaxed"]).to_numpy()
+        ok &= (np.abs(df[col("pos", m)] - p["relaxed"]) <= 4).to_numpy()
+    return ok
+
+
+def pulling(df: pd.DataFrame, motor: int) -> np.ndarray:
+    p = PULLERS[motor]["pull"]
+    return ((df[col("target pos", motor)] == p) & (np.abs(df[col("pos", motor)] - p) <= 100)).to_numpy()
+
+
+def runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Contiguous ``[start, stop)`` stretches where ``mask`` holds."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(int), [0]])))
+    return list(zip(edges[::2], edges[1::2]))
+
+
+def authors(df: pd.DataFrame) -> dict:
+    """Loaded and unloaded play of motor 5 (the authors' definition, module docstring)."""
+    home = (df[col("target pos", DUT)] == HOME).to_numpy()
+    pos = df[col("pos", DUT)].to_numpy(float)
+    rel = relaxed(df)
+    groups = {(m, s): [] for m in PULLERS for s in ("loaded", "unloaded")}
+    for a, b in runs(home):
+        if b - a < 10:
+            continue
+        for m in PULLERS:
+            for pa, pb in runs(pulling(df, m)[a:b]):
+                groups[m, "loaded"].append(pos[a + pa:a + pb])
+                after = [(ra, rb) for ra, rb in runs(rel[a:b]) if ra > pb - 1]
+                if after:
+                    ra, rb = after[0]
+                    groups[m, "unloaded"].append(pos[a + ra:a + rb])
+    out = {}
+    for state in ("loaded", "unloaded"):
+        means = [np.concatenate(groups[m, state]).mean() for m in PULLERS if groups[m, state]]
+        out[state] = float(abs(means[0] - means[1])) if len(means) == 2 else float("nan")
+    return out
+
+
+def settled_unpushed(df: pd.DataFrame) -> list[Level]:
+    """Motor 5's settled position at every target level, from the relaxed samples right after the
+    target step (before any pull), the last 3 of the first relaxed stretch that has stopped moving;
+    the standard error of a reading to the nearest count, 1/sqrt(12)."""
+    target = df[col("target pos", DUT)].to_numpy(float) - HOME
+    pos = df[col("pos", DUT)].to_numpy(float) - HOME
+    rel = relaxed(df)
+    levels = []
+    for a, b in _level_runs(target):
+        for ra, rb in runs(rel[a:b]):
+            tail = pos[a + ra:a + rb][-3:]
+            if rb - ra >= 4 and np.ptp(tail) == 0:
+                levels.append(Level("log", len(levels), float(target[a]), float(tail.mean()), 1 / np.sqrt(12), 3))
+                break
+    return levels
+
+
+def _level_runs(target: np.ndarray) -> list[tuple[int, int]]:
+    change = np.flatnonzero(np.diff(target) != 0) + 1
+    bounds = np.concatenate([[0], change, [target.size]])
+    return list(zip(bounds[:-1], bounds[1:]))
+
+
+def branch_gap(levels: list[Level]) -> float:
+    """Mean settled position approached from above minus that approached from below, per target,
+    averaged over the targets reached from both sides."""
+    gaps = []
+    for u in sorted({lv.u for lv in levels}):
+        up = [lv.x for i, lv in enumerate(levels) if lv.u == u and i and levels[i - 1].u < u]
+        down = [lv.x for i, lv in enumerate(levels) if lv.u == u and i and levels[i - 1].u > u]
+        if up and down:
+            gaps.append(np.mean(down) - np.mean(up))
+    return float(np.mean(gaps)) if gaps else float("nan")
+
+
+def main(paths) -> None:
+    print("| log | authors: loaded play | authors: unloaded play | hwid: branch gap | hwid stage 1 on the unpushed levels: "
+          "type, dead band d+ - d- [95 %] | chi2 / dof |")
+    print("|---|---|---|---|---|---|")
+    for path in paths:
+        df = pd.read_csv(path)
+        if col("pos", DUT) not in df.columns:
+            continue
+        a = authors(df)
+        levels = settled_unpushed(df)
+        gap = branch_gap(levels)
+        try:
+            res = HistoryFit(max_degree=3).fit(levels).result_
+            lo, hi = res.ci["dead_band"]
+            fit = (f"{res.type}, {res.dead_band:.2f} [{lo:.2f}, {hi:.2f}] counts "
+                   f"({res.dead_band * DEGREES_PER_COUNT:.2f} deg){' MISFIT' if res.misfit else ''}")
+            chi = f"{res.chi2:.3g} / {res.dof}"
+        except Exception as err:                    # too few levels in a log: say so in the row
+            fit, chi = f"not identifiable ({err})", "-"
+        print(f"| {Path(path).name} | {a['loaded']:.2f} counts ({a['loaded'] * DEGREES_PER_COUNT:.2f} deg) | "
+              f"{a['unloaded']:.2f} counts ({a['unloaded'] * DEGREES_PER_COUNT:.2f} deg) | {gap:.2f} counts | {fit} | {chi} |")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:] or sorted(FOLDER.glob("motor_telemetry_single*.csv")))
