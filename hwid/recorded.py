@@ -91,7 +91,10 @@ def _read_csv(path: Path, columns: list):
     try:
         names = list(pd.read_csv(path, sep=delimiter, nrows=0).columns)
         wanted = list(dict.fromkeys(_pick(path, names, c) for c in columns))
-        frame = pd.read_csv(path, sep=delimiter, usecols=wanted, dtype=str, engine="c", keep_default_na=True)
+        # numbers by the C parser's own conversion (the fast path); a column it cannot convert
+        # comes as text, read again by _csv_column (timestamps, or a bad cell named by its row)
+        frame = pd.read_csv(path, sep=delimiter, usecols=wanted, engine="c", keep_default_na=True,
+                            low_memory=False)
     except RecordError:
         raise
     except (ValueError, pd.errors.ParserError, UnicodeDecodeError) as err:
@@ -105,16 +108,23 @@ def _csv_column(path: Path, frame, name) -> np.ndarray:
     naming its row and column (empty cells become NaN)."""
     import pandas as pd
     text = frame[name]
-    numbers = pd.to_numeric(text, errors="coerce")
-    bad = numbers.isna() & text.notna() & (text.str.strip() != "")
-    if not bad.any():
-        return numbers.to_numpy(float)
-    if bad.mean() > 0.5:     # mostly text: timestamps
+    if pd.api.types.is_numeric_dtype(text.dtype):
+        return text.to_numpy(float)
+    present = text.notna()
+    first = text[present].iloc[0] if present.any() else ""
+    try:
+        float(first)
+        stamps = None
+    except ValueError:     # text: timestamps, or a column that is not a signal
         stamps = pd.to_datetime(text, format="ISO8601", utc=True, errors="coerce")
-        wrong = stamps.isna() & text.notna() & (text.str.strip() != "")
-        if not wrong.any():
+        bad = stamps.isna() & present
+        if not bad.any():
             return stamps.dt.tz_localize(None).to_numpy(dtype="datetime64[ns]")
-        bad = wrong
+    if stamps is None:
+        numbers = pd.to_numeric(text, errors="coerce")
+        bad = numbers.isna() & present & (text.astype(str).str.strip() != "")
+        if not bad.any():
+            return numbers.to_numpy(float)
     row = int(np.argmax(bad.to_numpy()))
     raise RecordError(f"{path}: row {row + 1} (data row, 1-based), column '{name}': "
                       f"'{text.iloc[row]}' is not a number")
