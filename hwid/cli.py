@@ -101,17 +101,22 @@ def identify_nonlinear(config: Path = typer.Argument(..., help="Config YAML."),
     from hwid.config import load as load_config
     from hwid.identify.nonlinear import identify_nonlinear as run_stage1
     from hwid.identify.result import format_summary
-    from hwid.results import write_json, write_nonlinear
+    from hwid.results import write_nonlinear
     cfg = load_config(config)
     out = _out_dir(out)
     if cfg.plant.kind == "recorded":
         _identify_history(cfg, out, json_out)
         return
     res, records = run_stage1(cfg, data=data, journal_dir=out / "rig_journal")
-    path = write_nonlinear(out, cfg, res, records)
+    _say_stage1(res, write_nonlinear(out, cfg, res, records), json_out, format_summary(res))
+
+
+def _say_stage1(res, path: Path, json_out: Optional[Path], summary: str) -> None:
+    """The JSON (where asked), the summary, the warnings on stderr, where the result went."""
+    from hwid.results import write_json
     if json_out is not None:
         write_json(json_out, res.to_dict())
-    typer.echo(format_summary(res))
+    typer.echo(summary)
     for msg in res.warnings:
         typer.echo(f"warning: {msg}", err=True)
     typer.echo(f"wrote {path}")
@@ -122,17 +127,11 @@ def _identify_history(cfg, out: Path, json_out: Optional[Path]) -> None:
     from hwid.identify.history import identify_history
     from hwid.identify.result import format_history
     from hwid.recorded import load_records
-    from hwid.results import write_history, write_json
+    from hwid.results import write_history
     nl = cfg.identification.nonlinear
     types = ("backlash", "backlash_inverse") if nl.input_type == "auto" else (nl.input_type,)
     res = identify_history(load_records(cfg), cfg.plant.output_resolution, nl.max_degree, types)
-    path = write_history(out / "history.h5", cfg, res)
-    if json_out is not None:
-        write_json(json_out, res.to_dict())
-    typer.echo(format_history(res))
-    for msg in res.warnings:
-        typer.echo(f"warning: {msg}", err=True)
-    typer.echo(f"wrote {path}")
+    _say_stage1(res, write_history(out / "history.h5", cfg, res), json_out, format_history(res))
 
 
 def _one_line(msg: str) -> str:

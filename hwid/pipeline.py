@@ -54,19 +54,9 @@ def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
 
     if cfg.identification.whole.enabled:
         from hwid.identify.result import model_from_stages
-        from hwid.identify.whole import WholeModelFit, fit_records
-        t0 = time.perf_counter()
+        from hwid.identify.whole import fit_records
         start = model_from_stages(nl, lin) if cfg.protocols.sine is not None else None
-        fit = WholeModelFit.from_config(cfg).fit(fit_records(list(nl_records) + list(lin_records if start else [])),
-                                                 start=start)
-        paths["whole"] = write_whole(out / "whole.h5", cfg, fit.result_)
-        times["whole"] = time.perf_counter() - t0
-        res = fit.result_
-        echo(f"whole model: {res.type}, d+ = {res.d_plus:.4f}, S^d = {res.slope_down:.4f}, d- = {res.d_minus:.4f}, "
-             f"h degree {len(res.h_coefficients) - 1}, G {res.structure}, sigma {res.sigma:.4g} "
-             f"({times['whole']:.1f} s)")
-        for w in res.warnings:
-            echo(f"warning: {w}")
+        _whole(cfg, fit_records(list(nl_records) + list(lin_records if start else [])), start, out, paths, times, echo)
 
     if report:
         from hwid.report.html import write_report
@@ -81,7 +71,6 @@ def _run_recorded(cfg, out: Path, report: bool, echo) -> dict:
     """A recorded plant: its records to ``simulation.h5``; stage 1 from their levels where they hold
     enough (``history.h5``); the whole-model fit on them when ``identification.whole.enabled``."""
     from hwid.identify.history import identify_history
-    from hwid.identify.whole import WholeModelFit
     from hwid.recorded import describe, load_records
     from hwid.results import write_history
     times: dict[str, float] = {}
@@ -108,16 +97,22 @@ def _run_recorded(cfg, out: Path, report: bool, echo) -> dict:
         for w in hist.warnings:
             echo(f"warning: {w}")
     if cfg.identification.whole.enabled:
-        t0 = time.perf_counter()
-        fit = WholeModelFit.from_config(cfg).fit(records)
-        paths["whole"] = write_whole(out / "whole.h5", cfg, fit.result_)
-        times["whole"] = time.perf_counter() - t0
-        res = fit.result_
-        echo(f"whole model: {res.type}, d+ = {res.d_plus:.4g}, S^d = {res.slope_down:.4g}, d- = {res.d_minus:.4g}, "
-             f"h degree {len(res.h_coefficients) - 1}, G {res.structure}, sigma {res.sigma:.4g} "
-             f"({times['whole']:.1f} s)")
+        _whole(cfg, records, None, out, paths, times, echo)
     if report:
         from hwid.report.html import write_report
         paths["report"] = write_report(out)
         echo(f"report: {paths['report']}")
     return {"paths": paths, "seconds": times}
+
+
+def _whole(cfg, records, start, out: Path, paths: dict, times: dict, echo) -> None:
+    """The whole-model fit on ``records`` (from ``start``, a model, where given): ``whole.h5``."""
+    from hwid.identify.whole import WholeModelFit
+    t0 = time.perf_counter()
+    res = WholeModelFit.from_config(cfg).fit(records, start=start).result_
+    paths["whole"] = write_whole(out / "whole.h5", cfg, res)
+    times["whole"] = time.perf_counter() - t0
+    echo(f"whole model: {res.type}, d+ = {res.d_plus:.4g}, S^d = {res.slope_down:.4g}, d- = {res.d_minus:.4g}, "
+         f"h degree {len(res.h_coefficients) - 1}, G {res.structure}, sigma {res.sigma:.4g} ({times['whole']:.1f} s)")
+    for w in res.warnings:
+        echo(f"warning: {w}")

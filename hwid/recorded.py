@@ -93,8 +93,7 @@ def _read_csv(path: Path, columns: list):
         wanted = list(dict.fromkeys(_pick(path, names, c) for c in columns))
         # numbers by the C parser's own conversion (the fast path); a column it cannot convert
         # comes as text, read again by _csv_column (timestamps, or a bad cell named by its row)
-        frame = pd.read_csv(path, sep=delimiter, usecols=wanted, engine="c", keep_default_na=True,
-                            low_memory=False)
+        frame = pd.read_csv(path, sep=delimiter, usecols=wanted, engine="c", keep_default_na=True)
     except RecordError:
         raise
     except (ValueError, pd.errors.ParserError, UnicodeDecodeError) as err:

@@ -551,39 +551,43 @@ def read_compare(path: str | Path) -> dict:
 
 # ---------------------------------------------------------------------------- whole.h5 (whole model)
 
+def _write_json_result(path: str | Path, cfg, kind: str, result) -> Path:
+    """A results file whose payload is one result's plain data (``result.to_dict()``) as the root
+    attribute ``result`` (JSON)."""
+    path = Path(path)
+    with atomic_h5(path) as f:
+        write_provenance(f, kind, cfg)
+        f.attrs["result"] = json.dumps(result.to_dict(), default=_json_default)
+    return path
+
+
+def _read_json_result(path: str | Path, kind: str, cls, what: str, cfg=None):
+    with open_results(path, kind, cfg) as f:
+        try:
+            return cls.from_dict(json.loads(f.attrs["result"]))
+        except (KeyError, ValueError, TypeError) as err:
+            raise ResultsError(f"{path}: not a complete {what} ({type(err).__name__}: {err})") from None
+
+
 def write_whole(path: str | Path, cfg, result: WholeResult) -> Path:
     """Write ``whole.h5`` (``hwid_kind = "whole"``): the whole-model fit's plain data
     (:meth:`WholeResult.to_dict`) as the root attribute ``result`` (JSON)."""
-    path = Path(path)
-    with atomic_h5(path) as f:
-        write_provenance(f, "whole", cfg)
-        f.attrs["result"] = json.dumps(result.to_dict(), default=_json_default)
-    return path
+    return _write_json_result(path, cfg, "whole", result)
+
+
+def read_whole(path: str | Path, cfg=None) -> WholeResult:
+    """The :class:`WholeResult` of ``whole.h5``."""
+    return _read_json_result(path, "whole", WholeResult, "whole-model result", cfg)
 
 
 def write_history(path: str | Path, cfg, result: HistoryResult) -> Path:
     """Write ``history.h5`` (``hwid_kind = "history"``): stage 1 from a recorded history, its plain
     data (:meth:`HistoryResult.to_dict`) as the root attribute ``result`` (JSON)."""
-    path = Path(path)
-    with atomic_h5(path) as f:
-        write_provenance(f, "history", cfg)
-        f.attrs["result"] = json.dumps(result.to_dict(), default=_json_default)
-    return path
+    return _write_json_result(path, cfg, "history", result)
 
 
 def read_history(path: str | Path, cfg=None) -> HistoryResult:
     """The :class:`HistoryResult` of ``history.h5``."""
-    with open_results(path, "history", cfg) as f:
-        try:
-            return HistoryResult.from_dict(json.loads(f.attrs["result"]))
-        except (KeyError, ValueError, TypeError) as err:
-            raise ResultsError(f"{path}: not a complete stage-1 history result ({type(err).__name__}: {err})") from None
+    return _read_json_result(path, "history", HistoryResult, "stage-1 history result", cfg)
 
 
-def read_whole(path: str | Path, cfg=None) -> WholeResult:
-    """The :class:`WholeResult` of ``whole.h5``."""
-    with open_results(path, "whole", cfg) as f:
-        try:
-            return WholeResult.from_dict(json.loads(f.attrs["result"]))
-        except (KeyError, ValueError, TypeError) as err:
-            raise ResultsError(f"{path}: not a complete whole-model result ({type(err).__name__}: {err})") from None
