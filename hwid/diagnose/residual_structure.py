@@ -15,7 +15,8 @@ through G), so each regression is prewhitened by the residual's own AR filter (f
 * ``harmonics`` - on sines and cosines at the harmonics of a sine experiment's fundamental: a
   periodic remainder the model lacks.
 
-:func:`residual_structure` returns the significant ones (Bonferroni over the tests run) as
+:func:`residual_structure` takes them in forward steps, each for what it explains beyond those
+already found, and returns the significant ones (Bonferroni over the tests run) as
 ``{"kind", "evidence", "p_value"}``, most significant first, or one ``{"kind": "none", ...}`` item.
 """
 from __future__ import annotations
@@ -60,17 +61,25 @@ def _whitening(e, order: int) -> np.ndarray:
 
 def gls_wald(r, X, controls=None, ar_order: int = 8) -> tuple[float, int]:
     """Wald statistic that the coefficients of ``X`` are zero in ``r ~ 1 + controls + X``;
-    chi-square with ``X.shape[1]`` degrees of freedom under the null.
+    chi-square with ``X.shape[1]`` degrees of freedom under the null (:func:`gls_wald_groups`)."""
+    return gls_wald_groups(r, {"x": X}, controls, ar_order)["x"]
+
+
+def gls_wald_groups(r, groups: dict, controls=None, ar_order: int = 8) -> dict:
+    """For each group of columns, the Wald statistic that its coefficients are zero in the joint
+    regression ``r ~ 1 + controls + all groups``, and its degrees of freedom: what each group
+    explains beyond the others.
 
     The residual's own correlation is taken out first (feasible GLS: an AR(``ar_order``) filter
     fitted to the least-squares residual is applied to both sides), then the classical covariance
     of the whitened regression applies."""
     r = np.asarray(r, float)
-    X = np.atleast_2d(np.asarray(X, float).T).T
-    parts = [np.ones((r.size, 1))] + ([np.atleast_2d(np.asarray(controls, float).T).T] if controls is not None else []) + [X]
-    A = np.hstack(parts)
+    cols = {k: np.atleast_2d(np.asarray(X, float).T).T for k, X in groups.items()}
+    parts = [np.ones((r.size, 1))] + ([np.atleast_2d(np.asarray(controls, float).T).T] if controls is not None else [])
+    first = sum(p.shape[1] for p in parts)
+    A = np.hstack(parts + list(cols.values()))
     spread = A.std(axis=0)
-    A = A / np.where(spread > 0, spread, 1.0)       # columns on one scale: the test is unchanged, its numerics better
+    A = A / np.where(spread > 0, spread, 1.0)       # columns on one scale: the tests are unchanged, their numerics better
     coef, *_ = np.linalg.lstsq(A, r, rcond=None)
     filt = _whitening(r - A @ coef, ar_order)
     p = filt.size - 1
@@ -80,9 +89,13 @@ def gls_wald(r, X, controls=None, ar_order: int = 8) -> tuple[float, int]:
     e = r_w - A_w @ coef
     s2 = float(e @ e) / max(e.size - A_w.shape[1], 1)
     cov = s2 * np.linalg.pinv(A_w.T @ A_w)
-    q = X.shape[1]
-    b = coef[-q:]
-    return float(b @ np.linalg.pinv(cov[-q:, -q:]) @ b), q
+    out, at = {}, first
+    for k, X in cols.items():
+        idx = slice(at, at + X.shape[1])
+        b = coef[idx]
+        out[k] = (float(b @ np.linalg.pinv(cov[idx, idx]) @ b), X.shape[1])
+        at += X.shape[1]
+    return out
 
 
 def last_direction(u, tol: float = 0.0) -> np.ndarray:
@@ -101,88 +114,95 @@ def _lagged(x, k: int) -> np.ndarray:
     return np.concatenate([np.full(k, x[0]), x[:-k]]) if k else x
 
 
-def _test_direction(segs) -> tuple[float, int, str] | None:
-    """On the direction of the input's last move and of the model output's (a play or friction at
-    the actuator follows the first, one at the output shaft the second; G's lag tells them apart)."""
-    r = np.concatenate([(s.y - s.y_model)[s.keep] for s in segs])
+def _direction(segs, r) -> tuple[np.ndarray, str] | None:
+    """The direction of the input's last move and of the model output's (a play or friction at the
+    actuator follows the first, one at the output shaft the second; G's lag tells them apart)."""
     cols = {"input": np.concatenate([last_direction(s.u)[s.keep] for s in segs]),
             "model output": np.concatenate([last_direction(s.y_model, 1e-9 * (np.ptp(s.y_model) or 1.0))[s.keep]
                                             for s in segs])}
     cols = {k: v for k, v in cols.items() if not np.all(v == v[0])}
     if not cols:
         return None
-    stat, q = gls_wald(r, np.column_stack(list(cols.values())))
-    parts = []
-    for name, d in cols.items():
-        if np.any(d > 0) and np.any(d < 0):
-            parts.append(f"after a rising {name} it differs from that after a falling one by "
-                         f"{float(np.mean(r[d > 0]) - np.mean(r[d < 0])):.3g}")
-    return stat, q, "the residual depends on the direction of motion: " + "; ".join(parts)
+    parts = [f"after a rising {name} it differs from that after a falling one by "
+             f"{float(np.mean(r[d > 0]) - np.mean(r[d < 0])):.3g}"
+             for name, d in cols.items() if np.any(d > 0) and np.any(d < 0)]
+    return np.column_stack(list(cols.values())), "the residual depends on the direction of motion: " + "; ".join(parts)
 
 
-def _test_varying_gain(segs) -> tuple[float, int, str] | None:
-    r = np.concatenate([(s.y - s.y_model)[s.keep] for s in segs])
+def _varying_gain(segs, r) -> tuple[np.ndarray, str] | None:
+    """The model output times the session time (the output itself is a control)."""
     x = np.concatenate([s.y_model[s.keep] for s in segs])
     if r.size < 20 or np.ptp(x) == 0:
         return None
     t = np.linspace(-1.0, 1.0, r.size)      # session time, in the order the experiments ran
-    xc = x - x.mean()
-    stat, q = gls_wald(r, xc * t, controls=xc)
-    return stat, q, "the residual scales with the model output by a factor that changes over the session"
+    return ((x - x.mean()) * t,
+            "the residual scales with the model output by a factor that changes over the session")
 
 
-def _test_loop(segs, lags=(2, 8, 32)) -> tuple[float, int, str] | None:
-    r, now, past = [], [], []
-    for s in segs:
-        keep = s.keep
-        r.append((s.y - s.y_model)[keep])
-        now.append(s.y_model[keep])
-        past.append(np.column_stack([_lagged(s.y_model, k)[keep] for k in lags]))
-    r = np.concatenate(r)
+def _loop(segs, r, lags=(2, 8, 32)) -> tuple[np.ndarray, str] | None:
+    """Past model outputs (the present one is a control)."""
     if r.size < 20 * len(lags):
         return None
-    stat, q = gls_wald(r, np.vstack(past), controls=np.concatenate(now))
-    return stat, q, (f"the residual depends on past outputs (lags {list(lags)} samples) beyond the model: "
-                     f"the output feeds back, or the dynamics differ from the model's")
+    past = np.vstack([np.column_stack([_lagged(s.y_model, k)[s.keep] for k in lags]) for s in segs])
+    return past, (f"the residual depends on past outputs (lags {list(lags)} samples) beyond the model: "
+                  f"the output feeds back, or the dynamics differ from the model's")
 
 
-def _test_harmonics(segs) -> tuple[float, int, str] | None:
-    stat, q, found = 0.0, 0, []
-    for s in segs:
-        if not s.omega:
+def _harmonics(segs, r) -> tuple[np.ndarray, str] | None:
+    """Sines and cosines at harmonics 1-5 of each sine experiment's fundamental, zero elsewhere."""
+    sizes = [int(np.sum(s.keep)) for s in segs]
+    offsets = np.concatenate([[0], np.cumsum(sizes)])
+    blocks, found = [], []
+    for i, s in enumerate(segs):
+        ks = [k for k in range(1, HARMONICS + 1) if s.omega and k * s.omega < np.pi / s.dt]
+        if not ks or sizes[i] < 4 * len(ks) + 10:
             continue
-        keep = s.keep
-        t = np.arange(s.u.size)[keep] * s.dt
-        r = (s.y - s.y_model)[keep]
-        ks = [k for k in range(1, HARMONICS + 1) if k * s.omega < np.pi / s.dt]
-        if r.size < 4 * len(ks) + 10 or not ks:
-            continue
-        X = np.column_stack([f(k * s.omega * t) for k in ks for f in (np.sin, np.cos)])
-        st, qq = gls_wald(r, X)
-        stat, q = stat + st, q + qq
+        t = np.arange(s.u.size)[s.keep] * s.dt
+        X = np.zeros((r.size, 2 * len(ks)))
+        X[offsets[i]:offsets[i + 1]] = np.column_stack([f(k * s.omega * t) for k in ks for f in (np.sin, np.cos)])
+        blocks.append(X)
         found.append(f"{s.omega:g} rad/s")
-    if not q:
+    if not blocks:
         return None
-    return stat, q, f"the residual is periodic at harmonics 1-{HARMONICS} of the sine experiments ({', '.join(found)})"
+    return np.hstack(blocks), f"the residual is periodic at harmonics 1-{HARMONICS} of the sine experiments ({', '.join(found)})"
 
 
 def residual_structure(segments, alpha: float = ALPHA) -> list[dict]:
     """The significant structures of the residual (module docstring), most significant first; one
-    ``{"kind": "none", ...}`` item when no test rejects at the family-wise level ``alpha``."""
+    ``{"kind": "none", ...}`` item when no test rejects at the family-wise level ``alpha``.
+
+    The kinds are taken in forward steps: the one that explains most of the residual first, then
+    each further one only for what it explains beyond those already found (a joint regression,
+    :func:`gls_wald_groups`), so a large misfit of one kind does not make every other kind
+    significant through what they share (a stick-slip's square wave is also periodic). The
+    p-value of an item is that of its step."""
     segs = [s for s in segments if s.u.size and np.any(s.keep)]
-    tests = {"direction_of_motion": _test_direction, "varying_gain": _test_varying_gain,
-             "loop": _test_loop, "harmonics": _test_harmonics}
-    results = []
-    for kind, test in tests.items():
-        out = test(segs) if segs else None
-        if out is None:
-            continue
-        stat, q, evidence = out
-        results.append({"kind": kind, "evidence": evidence, "p_value": float(stats.chi2.sf(stat, q))})
-    level = alpha / max(len(results), 1)
-    found = sorted((r for r in results if r["p_value"] < level), key=lambda r: r["p_value"])
+    if not segs:
+        return [{"kind": "none", "evidence": "no residual to test", "p_value": 1.0}]
+    r = np.concatenate([(s.y - s.y_model)[s.keep] for s in segs])
+    x = np.concatenate([s.y_model[s.keep] for s in segs])
+    columns = {"direction_of_motion": _direction, "varying_gain": _varying_gain, "loop": _loop,
+               "harmonics": _harmonics}
+    built = {kind: f(segs, r) for kind, f in columns.items()}
+    built = {kind: b for kind, b in built.items() if b is not None}
+    if not built:
+        return [{"kind": "none", "evidence": "the residual is too short to test", "p_value": 1.0}]
+    level = alpha / len(built)
+    found, remaining = [], list(built)
+    while remaining:
+        # the kind that explains most beyond those already found (log p: p itself underflows)
+        trials = []
+        for kind in remaining:
+            groups = {k: built[k][0] for k in [f["kind"] for f in found] + [kind]}
+            stat, q = gls_wald_groups(r, groups, controls=x)[kind]
+            trials.append((float(stats.chi2.logsf(stat, q)), kind))
+        log_p, kind = min(trials)
+        if log_p >= np.log(level):
+            break
+        found.append({"kind": kind, "evidence": built[kind][1], "p_value": float(np.exp(log_p))})
+        remaining.remove(kind)
     if found:
         return found
-    p_min = min((r["p_value"] for r in results), default=1.0)
-    return [{"kind": "none", "evidence": f"no test of {', '.join(r['kind'] for r in results) or 'the residual'} "
-             f"rejects at the family-wise level {alpha:g}", "p_value": float(p_min)}]
+    p_min = min(float(stats.chi2.sf(*gls_wald_groups(r, {k: built[k][0]}, controls=x)[k])) for k in built)
+    return [{"kind": "none", "evidence": f"no test of {', '.join(built)} rejects at the family-wise level {alpha:g}",
+             "p_value": p_min}]
