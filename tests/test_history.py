@@ -150,3 +150,29 @@ def test_sts3215_log_levels_read_as_the_log_shows_them():
     assert any("still moving" in w for w in warns)
     res = identify_history(records)
     assert res.ci["dead_band"][0] <= res.dead_band <= res.ci["dead_band"][1]
+
+
+def test_recorded_run_with_the_whole_fit_is_a_model_for_compare(tmp_path):
+    """``hwid run`` on a recorded log with identification.whole.enabled writes history.h5 and
+    whole.h5; the run directory, holding no stages, is a MODEL for ``hwid compare``, which finds
+    the log's own noise (0.01) in the residual."""
+    truth = _truth()
+    rng = np.random.default_rng(12)
+    u = _history(rng, n_levels=12, shortest=40, longest=80)
+    y = truth.simulate(u, DT, gear=0.0).x + 0.01 * rng.standard_normal(u.size)
+    (tmp_path / "log.csv").write_text("cmd,pos\n" + "\n".join(f"{a:.9g},{b:.9g}" for a, b in zip(u, y)))
+    cfg = {"name": "log", "sampling": {"dt": DT},
+           "plant": {"kind": "recorded", "experiments": [{"file": "log.csv", "input": {"column": "cmd"},
+                                                          "output": {"column": "pos"}}]},
+           "identification": {"nonlinear": {"input_type": "backlash"},
+                              "whole": {"enabled": True, "max_order": 1, "max_degree": 3, "input_type": "backlash"}}}
+    (tmp_path / "log.yaml").write_text(yaml.safe_dump(cfg))
+    for argv in (["run", str(tmp_path / "log.yaml"), "--out", str(tmp_path / "run")],
+                 ["compare", str(tmp_path / "run"), str(tmp_path / "log.yaml"), "--out", str(tmp_path / "cmp"),
+                  "--json", str(tmp_path / "cmp.json")]):
+        with pytest.raises(SystemExit) as exit_:
+            main(argv)
+        assert exit_.value.code in (0, None)
+    assert (tmp_path / "run" / "history.h5").exists() and (tmp_path / "run" / "whole.h5").exists()
+    d = json.loads((tmp_path / "cmp.json").read_text())
+    assert 0.0095 < d["rms"] < 0.0106

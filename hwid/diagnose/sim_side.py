@@ -15,7 +15,7 @@ import yaml
 from hwid import HwidError, config
 from hwid.identify.result import model_from_stages
 from hwid.model import HWModel, from_config
-from hwid.results import read_linear, read_nonlinear, write_linear, write_nonlinear
+from hwid.results import read_linear, read_nonlinear, read_whole, write_linear, write_nonlinear
 
 
 def model_from_yaml(path: Path) -> HWModel:
@@ -38,10 +38,15 @@ def model_from_yaml(path: Path) -> HWModel:
 
 
 def model_from_run(path: Path, echo=print) -> tuple[HWModel, dict]:
-    """The normalised model of a ``hwid run`` directory (stage 1 and stage 2 results)."""
+    """The normalised model of a ``hwid run`` directory: its two stages' results, or, where it has
+    none (a recorded plant's run), its whole-model fit (``whole.h5``)."""
+    stages = all((path / name).exists() for name in ("nonlinear.h5", "linear.h5"))
+    if not stages and (path / "whole.h5").exists():
+        return read_whole(path / "whole.h5").model(), {"source": "results", "path": str(path), "fit": "whole",
+                                                         "notes": []}
     for name in ("nonlinear.h5", "linear.h5"):
         if not (path / name).exists():
-            raise HwidError(f"--model {path}: no {name} in that directory (write one with 'hwid run')")
+            raise HwidError(f"--model {path}: no {name} (nor whole.h5) in that directory (write them with 'hwid run')")
     nonlinear = read_nonlinear(path / "nonlinear.h5")
     notes: list = []
     model = model_from_stages(nonlinear, read_linear(path / "linear.h5"), notes)
