@@ -19,7 +19,7 @@ BASE = {"kind": "hammerstein_wiener",
         "output_nonlinearity": {"polynomial": [0, 1.0, 0, -0.1]},
         "noise": {"std": 0.01}}
 NOISE = 0.01
-TRUTH = {"sensor_lag": {"tau_s": 1.5}, "rate_limit": {"rate": 0.4}, "input_deadzone": {"delta": 0.2},
+TRUTH = {"sensor_lag": {"tau_s": 1.5}, "rate_limit": {"rate": 0.4}, "rate_limit_slow": {"rate": 2.0 / 15.0}, "input_deadzone": {"delta": 0.2},
          "sensor_saturation": {"y_lo": -0.55, "y_hi": 0.55}, "resonance": {"omega_n": 4.0, "zeta": 0.05},
          "rate_limit_inverse": {"rate": 5.6}, "input_saturation_paper": {"u_lo": -1.23, "u_hi": 0.73}}
 # the paper's plant (Section 6) as an hwid model: the base of the paper-rig tests
@@ -127,6 +127,21 @@ def rate_limit_carried(u, dt):
     r = _rig("rate_limit_carried")
     u = np.asarray(u, float)
     step = TRUTH["rate_limit"]["rate"] * dt
+    ua = np.empty_like(u)
+    p = getattr(r, "actuator", u[0])
+    for i, ui in enumerate(u):
+        p += min(max(ui - p, -step), step)
+        ua[i] = p
+    r.actuator = p
+    return r.base(ua, dt) + r.noise(u.size)
+
+
+def rate_limit_slow(u, dt):
+    """A slow actuator: 15 s to cross the range [-1, 1] (G settles in 4 s), its position carried
+    over from call to call."""
+    r = _rig("rate_limit_slow")
+    u = np.asarray(u, float)
+    step = TRUTH["rate_limit_slow"]["rate"] * dt
     ua = np.empty_like(u)
     p = getattr(r, "actuator", u[0])
     for i, ui in enumerate(u):

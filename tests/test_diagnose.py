@@ -118,6 +118,21 @@ def test_rate_limit_whose_actuator_carries_over(tmp_path_factory, base_model):
     assert s["gap_after"] < 1.2 * s["noise_floor"]
 
 
+def test_slow_actuator_named_with_its_rate(tmp_path_factory, base_model):
+    """An actuator that needs 15 s to cross the range (G settles in 4 s), carried over between
+    calls: it remembers where it was several experiments back, so it is simulated through the whole
+    session (simulated through the experiment before alone, it left the fast experiments 4-6x the
+    noise and a drift was named). Named, its rate within 1 %, what is left is the rig's own noise.
+    The floor from the repeats is higher than that noise here: a slow carried actuator starts a
+    repeat elsewhere than the original."""
+    s, _ = _run(tmp_path_factory, "rate_limit_slow", base_model)
+    top = s["candidates"][0]
+    assert s["verdict"]["effect"] == "rate_limit" == top["effect"]
+    assert abs(top["params"]["rate"] / R.TRUTH["rate_limit_slow"]["rate"] - 1) < 0.01
+    assert top["params"]["carried"] > 0.9
+    assert abs(s["gap_after"] - R.NOISE) < 0.1 * R.NOISE
+
+
 def test_outside_effect_is_unexplained(tmp_path_factory, base_model):
     s, _ = _run(tmp_path_factory, "output_friction", base_model)
     assert s["verdict"]["effect"] == "unexplained"

@@ -135,6 +135,20 @@ def rate_limited(u, rate: float, dt: float) -> np.ndarray:
     return _rate_limit(u, float(rate) * dt, float(u[0])) if u.size else u.copy()
 
 
+def _since_crossed(u, F: InputNonlinearity) -> int:
+    """Samples back from the end of ``u`` to the start of the shortest tail over which ``u`` spans
+    more than F's play (somewhere in it the input moved from one side of the play to the other, so
+    the gear's state before it no longer matters); all of ``u`` if no tail does."""
+    width = abs(float(F.d_plus - F.d_minus)) * (1.0 if F.type == "backlash" else 1.0 / max(F.slope_down, 1e-9))
+    if u.size == 0 or width == 0:
+        return 0
+    r = u[::-1]
+    hi = np.maximum.accumulate(r)
+    lo = np.minimum.accumulate(r)
+    done = np.flatnonzero(hi - lo > width)
+    return int(done[0]) + 1 if done.size else int(u.size)
+
+
 def deadzone(u, delta: float) -> np.ndarray:
     """0 for ``|u| < delta``, ``u - delta sign(u)`` beyond."""
     u = np.asarray(u, float)
@@ -170,18 +184,21 @@ class ModelSim:
 
     Every experiment is simulated from the model's default initial state; the diagnosis
     experiments start with a lead-in (excluded from every gap) that makes the state irrelevant.
-    ``u_before[i]`` is the end of the input the plant received before experiment ``i`` (the
-    experiment run before it, or None): an actuator with memory (a rate limit) starts where that
-    left it, not at the experiment's first sample, and may not reach the lead-in's far level in
-    time; the backlash is then where that input's last moves put it.
+    ``u_before[i]`` is the input the plant received before experiment ``i`` (every experiment run
+    before it, in order, or None): an actuator with memory (a rate limit) starts where that left
+    it, not at the experiment's first sample, and may not reach the lead-in's far level in time;
+    the backlash is then where that input's last moves put it. ``lead[i]`` is how much of it (the
+    last samples) the chain after the actuator is run through before experiment ``i`` (default:
+    all of it).
     """
 
-    def __init__(self, model: HWModel, dt: float, inputs, u_before=None):
+    def __init__(self, model: HWModel, dt: float, inputs, u_before=None, lead=None):
         self.model = model
         self.dt = float(dt)
         self.inputs = [np.ascontiguousarray(u, float) for u in inputs]
         self.u_before = ([None if b is None else np.ascontiguousarray(b, float) for b in u_before]
                          if u_before is not None else None)
+        self.lead = list(lead) if lead is not None else None
         self.v = [model.input.apply(u) for u in self.inputs]
         self.w = [simulate_linear(model.linear, v, self.dt) for v in self.v]
         self.x = [model.output(w) for w in self.w]
@@ -192,7 +209,7 @@ class ModelSim:
         new = object.__new__(ModelSim)
         new.model = HWModel(self.model.input, self.model.linear, h)
         new.dt, new.inputs, new.v, new.w = self.dt, self.inputs, self.v, self.w
-        new.u_before = self.u_before
+        new.u_before, new.lead = self.u_before, self.lead
         new.x = [h(w) for w in self.w]
         return new
 
@@ -201,9 +218,16 @@ class ModelSim:
         return self.from_v(v)
 
     def before(self, i: int):
-        """The end of the input the plant received before experiment ``i`` (None if unknown)."""
+        """The input the plant received before experiment ``i`` (None if unknown)."""
         ub = getattr(self, "u_before", None)
         return None if ub is None else ub[i]
+
+    def lead_samples(self, i: int) -> int:
+        """How many of :meth:`before`'s last samples the chain after the actuator runs through."""
+        prev = self.before(i)
+        lead = getattr(self, "lead", None)
+        n = 0 if prev is None else prev.size
+        return n if lead is None or lead[i] is None else min(int(lead[i]), n)
 
     def from_v(self, v, G: LinearBlock | None = None) -> np.ndarray:
         return self.model.output(simulate_linear(G or self.model.linear, v, self.dt))
@@ -310,7 +334,11 @@ class RateLimit(Effect):
         fresh = sim.from_input(rate_limited(u, theta[0], sim.dt))
         if c <= 0 or prev is None or not prev.size:
             return fresh
-        carried = sim.from_input(rate_limited(np.concatenate([prev, u]), theta[0], sim.dt))[prev.size:]
+        # the actuator through the whole session before, and the chain after it from where the
+        # actuator last crossed the play both ways (before that, nothing it did is remembered)
+        act = rate_limited(np.concatenate([prev, u]), theta[0], sim.dt)
+        k = max(sim.lead_samples(i), _since_crossed(act[:prev.size], sim.model.input))
+        carried = sim.from_input(act[prev.size - k:])[k:]
         return fresh + c * (carried - fresh)
 
 

@@ -638,6 +638,7 @@ class _GSim(effect_models.ModelSim):
         self.model = HWModel(F, G, base.model.output)
         self.dt, self.inputs = base.dt, base.inputs
         self.u_before = getattr(base, "u_before", None)
+        self.lead = getattr(base, "lead", None)
         self._v = self._w = self._x = None
 
     @property

@@ -143,15 +143,22 @@ def run_validation(cfg, plant, sim_model, origin, identified: bool, echo) -> Val
     seconds_rig = time.perf_counter() - t0
     fit_idx = [i for i, e in enumerate(exps) if e.role == "fit"]
     val_idx = [i for i, e in enumerate(exps) if e.role == "validation"]
-    # the input the plant held when each experiment began (they run in this order, after the
-    # identification's records when the model was identified here): the whole experiment before
-    # (its lead-in puts a slow actuator where the experiment's first input is, so from there on
-    # its path is known), or the last moves and hold of the identification's last record
+    # the input the plant received before each experiment (they run in this order, after the
+    # identification's records when the model was identified here): all of it for an actuator
+    # with memory, whose position a slow slew carries across many experiments; the gear and G
+    # after it are run through the experiment before (or the identification's last moves and hold)
     keep = max(int(round(4 * design.settle_s / design.dt)), 1)
     ids = [np.asarray(r.u, float) for r in origin.get("records", []) if np.size(getattr(r, "u", None))]
-    u_before = [ids[-1][-keep:] if ids else None] + [e.u for e in exps[:-1]]
-    sim_fit = ModelSim(sim_model, design.dt, [exps[i].u for i in fit_idx], [u_before[i] for i in fit_idx])
-    sim_val = ModelSim(sim_model, design.dt, [exps[i].u for i in val_idx], [u_before[i] for i in val_idx])
+    history = [ids[-1][-keep:]] if ids else []
+    u_before, lead = [], []
+    for e in exps:
+        u_before.append(np.concatenate(history) if history else None)
+        lead.append(history[-1].size if history else None)
+        history.append(e.u)
+    sim_fit = ModelSim(sim_model, design.dt, [exps[i].u for i in fit_idx], [u_before[i] for i in fit_idx],
+                       [lead[i] for i in fit_idx])
+    sim_val = ModelSim(sim_model, design.dt, [exps[i].u for i in val_idx], [u_before[i] for i in val_idx],
+                       [lead[i] for i in val_idx])
     scale = _scale(design, exps, sim_fit, sim_val, records)
     return Validation(design, exps, records, fit_idx, val_idx, sim_fit, sim_val, scale, rig_seconds, seconds_rig)
 
