@@ -121,12 +121,12 @@ def rate_limit(u, dt):
     return r.base(ua, dt) + r.noise(u.size)
 
 
-def rate_limit_carried(u, dt):
-    """The same actuator, but its position carries over from call to call as on a physical rig
-    (``rate_limit`` resets it to ``u[0]`` at every call, as a driver that homes it would)."""
-    r = _rig("rate_limit_carried")
+def _carried_actuator(name: str, rate: float, u, dt):
+    """The base plant behind an actuator slewing at most ``rate`` units/s whose position carries
+    over from call to call, as on a physical rig."""
+    r = _rig(name)
     u = np.asarray(u, float)
-    step = TRUTH["rate_limit"]["rate"] * dt
+    step = rate * dt
     ua = np.empty_like(u)
     p = getattr(r, "actuator", u[0])
     for i, ui in enumerate(u):
@@ -134,21 +134,18 @@ def rate_limit_carried(u, dt):
         ua[i] = p
     r.actuator = p
     return r.base(ua, dt) + r.noise(u.size)
+
+
+def rate_limit_carried(u, dt):
+    """The same actuator, but its position carries over from call to call as on a physical rig
+    (``rate_limit`` resets it to ``u[0]`` at every call, as a driver that homes it would)."""
+    return _carried_actuator("rate_limit_carried", TRUTH["rate_limit"]["rate"], u, dt)
 
 
 def rate_limit_slow(u, dt):
     """A slow actuator: 15 s to cross the range [-1, 1] (G settles in 4 s), its position carried
     over from call to call."""
-    r = _rig("rate_limit_slow")
-    u = np.asarray(u, float)
-    step = TRUTH["rate_limit_slow"]["rate"] * dt
-    ua = np.empty_like(u)
-    p = getattr(r, "actuator", u[0])
-    for i, ui in enumerate(u):
-        p += min(max(ui - p, -step), step)
-        ua[i] = p
-    r.actuator = p
-    return r.base(ua, dt) + r.noise(u.size)
+    return _carried_actuator("rate_limit_slow", TRUTH["rate_limit_slow"]["rate"], u, dt)
 
 
 def input_deadzone(u, dt):
