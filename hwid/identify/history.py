@@ -171,7 +171,8 @@ class HistoryFit:
 
     def fit(self, levels: list[Level], warnings=()) -> "HistoryFit":
         if len(levels) < 4:
-            raise HwidError(f"stage 1 from a recorded history needs at least 4 settled levels; found {len(levels)}")
+            raise HwidError(f"stage 1 from a recorded history needs at least 4 settled levels; found {len(levels)} "
+                            "(for records without held levels, fit the whole model: identification.whole.enabled: true)")
         names = list(dict.fromkeys(lv.record for lv in levels))
         u = np.array([lv.u for lv in levels])
         width = float(np.ptp(u)) or 1.0
