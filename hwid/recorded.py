@@ -239,8 +239,14 @@ def load_experiment(exp, index: int, base: Path, dt: float, resolution: float | 
         u_grid, y_grid = resample(tk, uk, yk, dt)
         name = stem if len(pieces) == 1 else f"{stem}_part{k + 1}"
         attrs = {**provenance, "piece": k, "piece_start_s": float(tk[0])}
-        if exp.role in ("auto", "staircase"):
-            attrs["segments"] = json.dumps(level_segments(u_grid))
+        segments = level_segments(u_grid) if exp.role in ("auto", "staircase") else []
+        held = sum(seg["stop"] - seg["start"] for seg in segments)
+        if exp.role == "sine" or (exp.role == "auto" and held < 0.5 * u_grid.size):
+            periodic = periodic_segment(u_grid, dt)
+            if periodic is not None:
+                segments.append(periodic)
+        if exp.role in ("auto", "staircase", "sine"):
+            attrs["segments"] = json.dumps(segments)
         records.append(Record(name, dt, u_grid, y_grid, attrs=attrs))
     return records
 
@@ -343,6 +349,61 @@ def level_segments(u: np.ndarray) -> list[dict]:
     return out
 
 
+def periodic_segment(u: np.ndarray, dt: float, harmonics: int = 5, share: float = 0.8,
+                     steady: float = 0.05) -> dict | None:
+    """The steady periodic stretch of ``u``, if ``u`` is periodic: ``{"kind": "periodic", "start",
+    "stop", "omega", "periods"}``, or None.
+
+    The fundamental is the largest peak of the Hann-windowed spectrum (refined between bins); ``u``
+    counts as periodic when the fundamental and its harmonics up to ``harmonics`` hold ``share`` of
+    the power. The record is cut into whole periods from its start; the stretch kept is the longest
+    run of periods whose peak-to-peak stays within ``steady`` of the largest (ramps in and out, as a
+    tapered test has, are left out), at least two periods."""
+    u = np.asarray(u, float)
+    n = u.size
+    if n < 64:
+        return None
+    x = (u - u.mean()) * np.hanning(n)
+    power = np.abs(np.fft.rfft(x)) ** 2
+    power[0] = 0.0
+    if power.sum() <= 0:
+        return None
+    k = int(np.argmax(power[1:])) + 1
+    if 0 < k < power.size - 1:
+        a, b, c = np.log(power[k - 1:k + 2] + 1e-300)
+        k_hat = k + 0.5 * (a - c) / (a - 2 * b + c) if (a - 2 * b + c) != 0 else float(k)
+    else:
+        k_hat = float(k)
+    near = np.zeros(power.size, bool)
+    for h in range(1, harmonics + 1):
+        centre = int(round(h * k_hat))
+        near[max(centre - 3, 1):centre + 4] = True
+    if power[near].sum() < share * power.sum():
+        return None
+    period = n / k_hat                                  # samples
+    m = int(period)
+    whole = int(n // period)
+    if whole < 2 or m < 4:
+        return None
+    edges = np.round(np.arange(whole + 1) * period).astype(int)
+    amp = np.array([np.ptp(u[edges[i]:edges[i + 1]]) for i in range(whole)])
+    ok = amp >= (1.0 - steady) * amp.max()
+    best, run_start, best_span = None, None, (0, 0)
+    for i, flag in enumerate(np.append(ok, False)):
+        if flag and run_start is None:
+            run_start = i
+        elif not flag and run_start is not None:
+            if i - run_start > best_span[1] - best_span[0]:
+                best_span = (run_start, i)
+            run_start = None
+    first, last = best_span
+    if last - first < 2:
+        return None
+    best = {"kind": "periodic", "start": int(edges[first]), "stop": int(edges[last]),
+            "omega": float(2 * np.pi / (period * dt)), "periods": int(last - first)}
+    return best
+
+
 def describe(records: list[Record]) -> str:
     """One line on what reading the records did (``hwid check``)."""
     n = sum(r.u.size for r in records)
@@ -350,6 +411,10 @@ def describe(records: list[Record]) -> str:
                   for r in records if r.attrs.get("piece", 0) == 0)
     filled = sum(int(r.attrs.get("nan_interpolated", 0)) for r in records if r.attrs.get("piece", 0) == 0)
     jitter = max(float(r.attrs.get("jitter_max_s", 0.0)) for r in records)
-    levels = sum(len(json.loads(r.attrs.get("segments", "[]"))) for r in records)
+    segments = [seg for r in records for seg in json.loads(r.attrs.get("segments", "[]"))]
+    levels = sum(seg["kind"] == "level" for seg in segments)
+    periodic = [seg for seg in segments if seg["kind"] == "periodic"]
+    found = f"{levels} level(s)" + "".join(f", a periodic stretch ({seg['periods']} steady periods at "
+                                            f"{seg['omega']:.4g} rad/s)" for seg in periodic)
     return (f"{len(records)} experiment(s), {n} samples on the grid; {dropped} empty row(s) dropped, "
-            f"{filled} sample(s) interpolated, jitter up to {jitter * 1e3:.3g} ms, {levels} level(s) found")
+            f"{filled} sample(s) interpolated, jitter up to {jitter * 1e3:.3g} ms, {found} found")

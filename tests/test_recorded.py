@@ -10,7 +10,7 @@ import yaml
 
 from hwid import config
 from hwid.cli import main
-from hwid.recorded import level_segments, load_records, resample
+from hwid.recorded import level_segments, load_records, periodic_segment, resample
 from hwid.results import read_simulation
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
@@ -162,3 +162,38 @@ def test_real_damper_json():
     assert rec.dt == pytest.approx(1 / 1024) and rec.u.size > 5000
     assert rec.attrs["jitter_max_s"] < 1e-6
     assert np.ptp(rec.u) == pytest.approx(2.0, rel=0.1)            # +-1 in displacement
+    # the tapered 1 Hz test: its three full-amplitude periods found, the ramps in and out left out
+    [seg] = json.loads(rec.attrs["segments"])
+    assert seg["kind"] == "periodic" and seg["omega"] == pytest.approx(2 * np.pi, rel=1e-3)
+    assert seg["periods"] == 3 and seg["start"] == pytest.approx(2048, abs=20) and seg["stop"] == pytest.approx(5120, abs=20)
+
+
+def test_periodic_stretch_of_a_tapered_sine():
+    """A 0.7 rad/s sine tapered in over 2 periods and out over 2, 6 periods at full amplitude
+    between, with noise: the fundamental to 0.5 %, the full-amplitude periods kept (one period of
+    slack at either end, where a period straddles the taper), the tapers left out."""
+    dt, omega = 0.05, 0.7
+    period = 2 * np.pi / omega
+    t = np.arange(int(10 * period / dt)) * dt
+    envelope = np.clip(np.minimum(t, t[-1] - t) / (2 * period), 0.0, 1.0)
+    u = envelope * np.sin(omega * t) + 0.01 * np.random.default_rng(0).standard_normal(t.size)
+    seg = periodic_segment(u, dt)
+    assert seg["omega"] == pytest.approx(omega, rel=5e-3)
+    assert 5 <= seg["periods"] <= 6
+    assert 2 * period / dt - period / dt <= seg["start"] <= 2 * period / dt + period / dt
+    assert envelope[seg["start"]:seg["stop"]].min() > 0.9
+
+
+def test_auto_role_finds_levels_or_a_periodic_stretch(tmp_path):
+    """role auto: a log of held levels gives levels only; a sine log gives one periodic stretch."""
+    t = np.arange(600) * DT
+    steps = np.repeat([0.0, 10.0, 20.0, 10.0, 0.0, -10.0], 100)
+    cfg, _ = _config(tmp_path, _csv(tmp_path, t, steps, np.sin(t), name="steps.csv"), time={"column": "timestamp"},
+                     input={"column": "target"}, output={"column": "pos"}, role="auto")
+    [rec] = load_records(cfg)
+    assert [seg["kind"] for seg in json.loads(rec.attrs["segments"])] == ["level"] * 6
+    cfg, _ = _config(tmp_path, _csv(tmp_path, t, 10 * np.sin(0.5 * t), np.sin(t), name="sine.csv"),
+                     time={"column": "timestamp"}, input={"column": "target"}, output={"column": "pos"}, role="auto")
+    [rec] = load_records(cfg)
+    periodic = [seg for seg in json.loads(rec.attrs["segments"]) if seg["kind"] == "periodic"]
+    assert len(periodic) == 1 and periodic[0]["omega"] == pytest.approx(0.5, rel=0.01)

@@ -54,6 +54,7 @@ def settled_levels(records, resolution: float | None = None) -> tuple[list[Level
     per_record = []
     for r in records:
         segs = json.loads(r.attrs["segments"]) if "segments" in r.attrs else level_segments(np.asarray(r.u, float))
+        segs = [s for s in segs if s["kind"] == "level"]
         q = resolution if resolution is not None else (float(r.attrs.get("output_resolution", 0.0)) or None)
         per_record.append((r, segs, q))
     segments = [np.asarray(r.y[s["start"]:s["stop"]], float) for r, segs, _ in per_record for s in segs]
