@@ -179,7 +179,6 @@ class HistoryFit:
         width = float(np.ptp(u)) or 1.0
         table, best = [], None
         for kind in self.types:
-            prob = _Problem(levels, names, kind)
             for degree in range(1, self.max_degree + 1):
                 prob = _Problem(levels, names, kind, degree)
                 if prob.n <= prob.n_outer + degree:
