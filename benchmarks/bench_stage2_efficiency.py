@@ -23,7 +23,8 @@ import numpy as np
 from scipy import stats
 
 from hwid import config, protocols
-from hwid.identify.linear import ExtrapolationWarning, KnownNonlinear, LinearEstimator, crlb
+from hwid.identify.crlb import crlb
+from hwid.identify.linear import ExtrapolationWarning, KnownNonlinear, LinearEstimator
 from hwid.model import from_config
 from hwid.plant import Record, SimulatedPlant
 

@@ -124,13 +124,11 @@ def _say_stage1(res, path: Path, json_out: Optional[Path], summary: str) -> None
 
 def _identify_history(cfg, out: Path, json_out: Optional[Path]) -> None:
     """Stage 1 of a recorded plant from its levels (``hwid.identify.history``)."""
-    from hwid.identify.history import identify_history
+    from hwid.identify.history import identify_recorded
     from hwid.identify.result import format_history
     from hwid.recorded import load_records
     from hwid.results import write_history
-    nl = cfg.identification.nonlinear
-    types = ("backlash", "backlash_inverse") if nl.input_type == "auto" else (nl.input_type,)
-    res = identify_history(load_records(cfg), cfg.plant.output_resolution, nl.max_degree, types)
+    res = identify_recorded(cfg, load_records(cfg))
     _say_stage1(res, write_history(out / "history.h5", cfg, res), json_out, format_history(res))
 
 

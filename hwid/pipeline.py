@@ -70,7 +70,7 @@ def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
 def _run_recorded(cfg, out: Path, report: bool, echo) -> dict:
     """A recorded plant: its records to ``simulation.h5``; stage 1 from their levels where they hold
     enough (``history.h5``); the whole-model fit on them when ``identification.whole.enabled``."""
-    from hwid.identify.history import identify_history
+    from hwid.identify.history import identify_recorded
     from hwid.recorded import describe, load_records
     from hwid.results import write_history
     times: dict[str, float] = {}
@@ -79,10 +79,8 @@ def _run_recorded(cfg, out: Path, report: bool, echo) -> dict:
     records = load_records(cfg)
     paths["simulation"] = write_simulation(out / "simulation.h5", cfg, records, None)
     echo(f"records: {describe(records)}")
-    nl = cfg.identification.nonlinear
     try:
-        hist = identify_history(records, cfg.plant.output_resolution, nl.max_degree,
-                                ("backlash", "backlash_inverse") if nl.input_type == "auto" else (nl.input_type,))
+        hist = identify_recorded(cfg, records)
     except HwidError as err:
         if not cfg.identification.whole.enabled:
             raise HwidError(f"{cfg.source_path}: {err}; set identification.whole.enabled: true to fit the whole "

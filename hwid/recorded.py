@@ -381,27 +381,19 @@ def periodic_segment(u: np.ndarray, dt: float, harmonics: int = 5, share: float 
     if power[near].sum() < share * power.sum():
         return None
     period = n / k_hat                                  # samples
-    m = int(period)
     whole = int(n // period)
-    if whole < 2 or m < 4:
+    if whole < 2 or period < 4:
         return None
     edges = np.round(np.arange(whole + 1) * period).astype(int)
     amp = np.array([np.ptp(u[edges[i]:edges[i + 1]]) for i in range(whole)])
-    ok = amp >= (1.0 - steady) * amp.max()
-    best, run_start, best_span = None, None, (0, 0)
-    for i, flag in enumerate(np.append(ok, False)):
-        if flag and run_start is None:
-            run_start = i
-        elif not flag and run_start is not None:
-            if i - run_start > best_span[1] - best_span[0]:
-                best_span = (run_start, i)
-            run_start = None
-    first, last = best_span
+    ok = np.concatenate([[False], amp >= (1.0 - steady) * amp.max(), [False]])
+    starts, stops = np.flatnonzero(np.diff(ok.astype(int)) == 1), np.flatnonzero(np.diff(ok.astype(int)) == -1)
+    longest = int(np.argmax(stops - starts))
+    first, last = int(starts[longest]), int(stops[longest])
     if last - first < 2:
         return None
-    best = {"kind": "periodic", "start": int(edges[first]), "stop": int(edges[last]),
-            "omega": float(2 * np.pi / (period * dt)), "periods": int(last - first)}
-    return best
+    return {"kind": "periodic", "start": int(edges[first]), "stop": int(edges[last]),
+            "omega": float(2 * np.pi / (period * dt)), "periods": last - first}
 
 
 def describe(records: list[Record]) -> str:

@@ -195,7 +195,7 @@ def test_refloor_measures_the_excess_down_to_the_smallest_gap_left():
     floor on validation data it never saw: the noise is at most what the delay leaves, so the delay
     explains all of the excess and the lag (0.01008) explains 1 - sqrt(0.01008^2 - s^2)/sqrt(0.0103^2
     - s^2) = 0.43 of it with s = 0.00997."""
-    from hwid.diagnose.rank import Candidate, refloor
+    from hwid.diagnose.verdict import Candidate, refloor
 
     def cand(name, ga, score):
         return Candidate(name, "linear", {}, ga, ga, 0.0, score, 1.0)
@@ -217,7 +217,7 @@ def test_refloor_ties_candidates_whose_scores_are_close():
     """Down to the smallest gap left, 0.010015 and 0.010023 explain 1.0 and 0.90 of the excess
     above it, yet their BIC scores differ by 4: a tie, where the resonance pressed against its
     damping limit ranks after the delay."""
-    from hwid.diagnose.rank import Candidate, refloor
+    from hwid.diagnose.verdict import Candidate, refloor
     reso = Candidate("resonance", "linear", {}, 0.010015, 0.010015, 0.0, 1104.0, 2.0, at_bound=True)
     delay = Candidate("time_delay", "linear", {}, 0.010023, 0.010023, 0.0, 1100.0, 1.0)
     lag = Candidate("sensor_lag", "output", {}, 0.010078, 0.010078, 0.0, 1008.0, 1.0)

@@ -5,11 +5,10 @@ import warnings
 
 import numpy as np
 import pytest
-from scipy import stats
 
 from hwid import HwidError, config, protocols
-from hwid.identify.linear import (ExtrapolationWarning, KnownNonlinear, LinearEstimator, crlb, fisher,
-                                  identify_linear)
+from hwid.identify.crlb import crlb
+from hwid.identify.linear import ExtrapolationWarning, KnownNonlinear, LinearEstimator, identify_linear
 from hwid.model import InputNonlinearity, from_config
 from hwid.plant import Record
 from hwid.results import read_linear, write_linear

@@ -11,7 +11,7 @@ Steps (:func:`diagnose`, in :mod:`hwid.diagnose.run`):
 2. simulate the model on them; estimate the noise floor from repeats and test whether the gap is
    more than noise (:mod:`hwid.diagnose.gap`);
 3. fit every catalogue effect (:mod:`hwid.diagnose.effects`) on the fit experiments and score it on
-   the validation experiments; rank; verdict (:mod:`hwid.diagnose.rank`);
+   the validation experiments (:mod:`hwid.diagnose.rank`); rank; verdict (:mod:`hwid.diagnose.verdict`);
 4. say where the gap lies: per experiment, per region, frequencies, trend;
 5. write ``OUT/diagnosis.h5`` and the JSON summary (:class:`DiagnosisResult`).
 """

@@ -1,5 +1,5 @@
-"""Which effect: fit every catalogue effect on the fit experiments, score it on the validation
-experiments (which the fit never saw), rank, and give the verdict.
+"""Which effect: fit every catalogue effect on the fit experiments and score it on the validation
+experiments (which the fit never saw); ranking and the verdict are :mod:`hwid.diagnose.verdict`.
 
 For an effect with parameters ``theta`` (what it interacts with included, e.g. the borders for a
 deadzone) the fit minimises the squared gap on the fit experiments: a coarse grid of starting
@@ -19,60 +19,14 @@ experiments:
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 from scipy.optimize import least_squares
 
 from hwid.diagnose import effects as effect_models
 from hwid.diagnose.baseline import cancel_slow_pairs, mirror_rhp_zeros, split_modes
 from hwid.diagnose.gap import rms
+from hwid.diagnose.verdict import Candidate, bic_score, explained_fraction, rank
 from hwid.model import InputNonlinearity
-
-
-@dataclass
-class Candidate:
-    effect: str
-    block: str
-    params: dict
-    gap_fit: float
-    gap_after: float
-    explained_fraction: float
-    score: float
-    k: float
-    per_experiment: dict = field(default_factory=dict)
-    predictions: list = field(default_factory=list, repr=False)   # validation model outputs
-    model: dict | None = None      # F and G re-estimated with the effect (identified models)
-    at_bound: bool = False         # pressed against a bound that defines the effect
-
-    def to_dict(self) -> dict:
-        d = {"effect": self.effect, "params": self.params, "gap_after": self.gap_after,
-             "explained_fraction": self.explained_fraction, "score": self.score,
-             "block": self.block, "gap_fit": self.gap_fit, "n_params": self.k,
-             "per_experiment": self.per_experiment, "at_bound": self.at_bound}
-        if self.model is not None:
-            d["model"] = self.model
-        return d
-
-
-def excess(gap_rms: float, sigma: float) -> float:
-    """The gap above the noise floor, ``sqrt(max(gap^2 - sigma^2, 0))`` (noise adds in quadrature)."""
-    return float(np.sqrt(max(gap_rms * gap_rms - sigma * sigma, 0.0)))
-
-
-def bic_score(gap_before: float, gap_after: float, k: float, n_eff: float) -> float:
-    """The candidate's BIC on the validation data, ``n_eff ln(gap_before^2 / gap_after^2) - k ln(n_eff)``
-    (see the module docstring)."""
-    return float(n_eff * np.log(max(gap_before ** 2, 1e-300) / max(gap_after ** 2, 1e-300)) - k * np.log(n_eff))
-
-
-def explained_fraction(gap_before: float, gap_after: float, sigma: float) -> float:
-    """``1 - excess(after) / excess(before)``, clipped to [0, 1]: the share of the gap above the
-    noise floor that an effect removes."""
-    eb = excess(gap_before, sigma)
-    if eb <= 0:
-        return 0.0
-    return float(np.clip(1.0 - excess(gap_after, sigma) / eb, 0.0, 1.0))
 
 
 class EffectFitter:
@@ -660,30 +614,6 @@ class _GSim(effect_models.ModelSim):
         return self._x
 
 
-def alternative_baseline(primary: list[Candidate], other: list[Candidate], gap_ref: float, sigma: float,
-                         n_eff: float) -> list[Candidate]:
-    """Each effect from whichever of two baselines fits the fit experiments better, measured against
-    ``gap_ref`` (the better baseline alone: explained fraction and score recomputed), ranked.
-
-    The two baselines of an identified model: its G refit as it is, and its G with the lightly
-    damped modes outside the identified band taken out before the refit. Stage 2 may put a mode
-    far above the band into G where the plant slews (its harmonics fall off faster than G's); the
-    refit then damps that pair into a low-pass that stands in for the slew, and no effect is left to
-    take its place (a 5.6 units/s rate limit on a Backlash-Inverse rig, 13 rad/s above a band up to
-    2.5 rad/s, explained 0.41). Taken out before the refit, the same pair may be half of the
-    plant's dynamics (curved borders distort the harmonics of a slow plant into a pair at 0.37 rad/s
-    just above a band up to 0.2): which baseline an effect uses is decided by the fit data alone."""
-    import dataclasses
-    by = {c.effect: c for c in other}
-    out = []
-    for c in primary:
-        o = by.get(c.effect)
-        pick = o if (o is not None and np.isfinite(o.gap_fit) and o.gap_fit < c.gap_fit) else c
-        out.append(dataclasses.replace(pick, explained_fraction=explained_fraction(gap_ref, pick.gap_after, sigma),
-                                       score=bic_score(gap_ref, pick.gap_after, pick.k, n_eff)))
-    return rank(out)
-
-
 def fit_all(fitter: EffectFitter, effects: dict[str, effect_models.Effect], echo=None) -> list[Candidate]:
     """Fit every effect; return the candidates ranked (explained fraction, then score)."""
     out = []
@@ -694,59 +624,3 @@ def fit_all(fitter: EffectFitter, effects: dict[str, effect_models.Effect], echo
                  f"score {c.score:.4g}  {c.params}")
         out.append(c)
     return rank(out)
-
-
-def rank(cands: list[Candidate], tie: float = 0.03, score_tie: float | None = None) -> list[Candidate]:
-    """By explained fraction; candidates within ``tie`` of each other (or, with ``score_tie``, whose
-    scores are within it of the top's) by score (fewer parameters win when they explain as much),
-    after those whose fit pressed against a bound that defines them (a resonance at the largest
-    damping a lightly damped mode may have explains as a plain low-pass would: a delay or a lag that
-    explains as much is the better name)."""
-    cands = sorted(cands, key=lambda c: -c.explained_fraction)
-    out: list[Candidate] = []
-    while cands:
-        top = cands[0].explained_fraction
-        grp = [c for c in cands if c.explained_fraction >= top - tie
-               or (score_tie is not None and c.score >= cands[0].score - score_tie)]
-        grp.sort(key=lambda c: (c.at_bound, -c.score))
-        out += grp
-        cands = [c for c in cands if c not in grp]
-    return out
-
-
-def refloor(cands: list[Candidate], gap_before: float, sigma: float,
-            drift_plausible: bool) -> tuple[list[Candidate], float]:
-    """The floor and the candidates with explained fractions measured down to ``min(sigma, smallest gap_after)``
-    (eligible candidates; ``drift`` only when plausible), re-ranked. A model fitted on other data
-    cannot remove the validation data's noise, so the smallest gap any candidate leaves is an upper
-    bound on the noise; a floor from repeats above it carries more than noise."""
-    import dataclasses
-    gaps = [c.gap_after for c in cands if (c.effect != "drift" or drift_plausible) and np.isfinite(c.gap_after)]
-    floor = min([sigma] + gaps)
-    if floor >= sigma:
-        return cands, sigma
-    # measured down to the smallest gap left, the fractions stretch: candidates whose BIC scores are
-    # within 10 of the top's (very strong evidence, Kass & Raftery 1995) are tied with it
-    out = rank([dataclasses.replace(c, explained_fraction=explained_fraction(gap_before, c.gap_after, floor))
-                for c in cands], score_tie=10.0)
-    if not drift_plausible:     # listed last, as before
-        out = [c for c in out if c.effect != "drift"] + [c for c in out if c.effect == "drift"]
-    return out, floor
-
-
-def verdict(cands: list[Candidate], significant: bool, drift_plausible: bool,
-            threshold: float = 0.5) -> Candidate | None | str:
-    """``"none"`` when the gap is noise; the first ranked candidate that explains at least
-    ``threshold`` of the excess and pays for its parameters; else ``"unexplained"``.
-
-    ``drift`` is only eligible when the plant does not repeat itself (``drift_plausible``): a
-    deterministic effect gives the same residual on repeated runs, a drift does not."""
-    if not significant:
-        return "none"
-    for c in cands:
-        if c.effect == "drift" and not drift_plausible:
-            continue
-        if c.explained_fraction >= threshold and c.score > 0:
-            return c
-        break
-    return "unexplained"

@@ -16,6 +16,8 @@ from hwid.diagnose.baseline import has_outside_modes
 from hwid.diagnose.effects import BLOCK, CATALOGUE, ModelSim, Scale, catalogue
 from hwid.diagnose.result import DiagnosisResult
 from hwid.diagnose.sim_side import load_model
+from hwid.diagnose.verdict import Candidate, alternative_baseline, refloor
+from hwid.diagnose.verdict import verdict as decide_verdict
 from hwid.plant import make_plant
 from hwid.results import write_diagnosis, write_json
 
@@ -106,7 +108,7 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
         cands, by_effect = second_test(cands, gap_ref, floor, drift_ok, fitter.n_eff)
         if by_effect is not None and by_effect["significant"]:
             test = dataclasses.replace(test, significant=True)
-    verdict = rank.verdict(cands, test.significant, drift_ok)
+    verdict = decide_verdict(cands, test.significant, drift_ok)
     seconds_analysis = time.perf_counter() - t0
 
     result = _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, test, additive, drift_ok,
@@ -149,12 +151,12 @@ def run_validation(cfg, plant, sim_model, origin, identified: bool, echo) -> Val
     # after it are run through the experiment before (or the identification's last moves and hold)
     keep = max(int(round(4 * design.settle_s / design.dt)), 1)
     ids = [np.asarray(r.u, float) for r in origin.get("records", []) if np.size(getattr(r, "u", None))]
-    history = [ids[-1][-keep:]] if ids else []
-    u_before, lead = [], []
-    for e in exps:
-        u_before.append(np.concatenate(history) if history else None)
-        lead.append(history[-1].size if history else None)
-        history.append(e.u)
+    pieces = ([ids[-1][-keep:]] if ids else []) + [e.u for e in exps]
+    session = np.concatenate(pieces)                  # one array; what came before is a prefix of it
+    ends = np.cumsum([p.size for p in pieces])
+    first = len(pieces) - len(exps)                   # index of the first experiment among the pieces
+    u_before = [session[:ends[first + i - 1]] if first + i > 0 else None for i in range(len(exps))]
+    lead = [pieces[first + i - 1].size if first + i > 0 else None for i in range(len(exps))]
     sim_fit = ModelSim(sim_model, design.dt, [exps[i].u for i in fit_idx], [u_before[i] for i in fit_idx],
                        [lead[i] for i in fit_idx])
     sim_val = ModelSim(sim_model, design.dt, [exps[i].u for i in val_idx], [u_before[i] for i in val_idx],
@@ -192,7 +194,7 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
         if alternative.gap_ref < gap_ref:
             gap_ref = alternative.gap_ref
             test = gap.gap_test(gap_ref, n_val, floor, min_ratio=ID_MIN_RATIO)
-        cands = rank.alternative_baseline(cands, rank.fit_all(alternative, available, echo=echo), gap_ref,
+        cands = alternative_baseline(cands, rank.fit_all(alternative, available, echo=echo), gap_ref,
                                           floor.sigma, fitter.n_eff)
     return cands, gap_ref, test
 
@@ -205,9 +207,9 @@ def second_test(cands, gap_ref, floor, drift_ok: bool, n_eff: float):
 
     No model fitted elsewhere removes noise from validation data, so the smallest gap a candidate
     leaves bounds the noise from above: below the floor from the repeats (which carry whatever the
-    plant does not repeat exactly) the excess is measured down to it (:func:`rank.refloor`).
+    plant does not repeat exactly) the excess is measured down to it (:func:`refloor`).
     Returns ``(candidates, by_effect)``."""
-    cands, bound = rank.refloor(cands, gap_ref, floor.sigma, drift_ok)
+    cands, bound = refloor(cands, gap_ref, floor.sigma, drift_ok)
     best = next((c for c in cands if c.effect != "drift" or drift_ok), None)
     if best is None:
         return cands, None
@@ -260,7 +262,7 @@ def where_block(verdict_effect, cands, floor, regions, drift_ok=False) -> str:
 
 def result_after(verdict, val: Validation, res_before) -> list:
     """The validation residuals with the verdict's effect added (the residuals before, without one)."""
-    if isinstance(verdict, rank.Candidate):
+    if isinstance(verdict, Candidate):
         return [y - x for y, x in zip(val.y_val, verdict.predictions)]
     return res_before
 
@@ -269,7 +271,7 @@ def result_after(verdict, val: Validation, res_before) -> list:
 
 def _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, test, additive, drift_ok, fitter,
             id_err, by_effect, sim_model, origin, cost) -> DiagnosisResult:
-    if isinstance(verdict, rank.Candidate):
+    if isinstance(verdict, Candidate):
         name, explained, gap_after = verdict.effect, verdict.explained_fraction, verdict.gap_after
     else:
         name, explained, gap_after = verdict, 0.0, gap_before

@@ -28,6 +28,8 @@ import numpy as np
 from numba import njit
 from scipy import stats
 
+from hwid.blocks.static import polyval
+
 
 # ------------------------------------------------------------------------------------ harmonic model
 
@@ -141,6 +143,54 @@ class HarmonicModel:
         A = np.where(dc, D.real, A)
         beta = np.where(dc, 0.0, beta)
         return ks, A, beta
+
+
+class DistortedHarmonics:
+    """The harmonic model of eq. (20) with a distorted input, evaluated numerically: the harmonics
+    ``C_k`` of ``h(r sin(theta - phi) + d(theta))`` and their derivatives in ``r`` and ``phi``, by
+    the FFT of one period of ``M`` points (``d = W_0 + sum_{k>=2} Im(W_k e^{j k theta})``: the
+    input distortion). The grid, ``d`` and ``h'`` are prepared once; each call costs two
+    polynomial evaluations and one real FFT of three rows (the same operations, value for value, as
+    a fresh evaluation)."""
+
+    def __init__(self, hm: HarmonicModel, W, ks, M: int | None = None):
+        W = np.asarray(W, complex)
+        self.ks = np.asarray(ks)
+        if M is None:
+            M = 1 << int(np.ceil(np.log2(8 * max(hm.degree, 1) * max(len(W), int(self.ks.max()) + 1))))
+        self.M = M
+        self.th = 2 * np.pi * np.arange(M) / M
+        d = np.full(M, float(np.real(W[0])))
+        E = _rotations(M, len(W))
+        for k in range(2, len(W)):
+            d += np.imag(W[k] * E[k])
+        self.d = d
+        self.c = np.asarray(hm.h_coefficients, float)
+        self.dc = np.polynomial.polynomial.polyder(self.c)
+
+    def __call__(self, r: float, phi: float):
+        sn, cs = np.sin(self.th - phi), np.cos(self.th - phi)
+        w = r * sn + self.d
+        x = polyval(w, self.c)
+        hp = polyval(w, self.dc)
+        F = np.fft.rfft(np.stack([x, hp * sn, -hp * r * cs]), axis=1)[:, self.ks] / self.M
+        C = -2 * F.imag + 2j * F.real
+        return C[0], C[1], C[2]
+
+
+@lru_cache(maxsize=16)
+def _rotations(M: int, K: int) -> np.ndarray:
+    """``e^{j k theta}`` on the grid ``theta = 2 pi m / M``, rows ``k = 0..K-1`` (read only)."""
+    th = 2 * np.pi * np.arange(M) / M
+    E = np.array([np.exp(1j * k * th) for k in range(K)])
+    E.flags.writeable = False
+    return E
+
+
+def distorted_harmonics(hm: HarmonicModel, r: float, phi: float, W, ks, M: int | None = None):
+    """Harmonics ``C_k`` of ``h(r sin(theta - phi) + d(theta))`` and their derivatives in ``r`` and ``phi``,
+    by the FFT of one period (``d = W_0 + sum_{k>=2} Im(W_k e^{j k theta})``: the input distortion)."""
+    return DistortedHarmonics(hm, W, ks, M)(r, phi)
 
 
 # ------------------------------------------------------------------------------- harmonic least squares

@@ -32,6 +32,7 @@ if sound.
 from __future__ import annotations
 
 import json
+
 import numpy as np
 from scipy import optimize, stats
 
@@ -39,6 +40,7 @@ from hwid import HwidError
 from hwid.identify.joint_fit import numeric_jacobian
 from hwid.identify.result import HistoryResult, Level
 from hwid.identify.steady import steady_levels
+from hwid.model import InputNonlinearity
 
 #: fewest samples ``steady_levels`` averages; shorter levels go through :func:`_short_level`
 MIN_STEADY = 20
@@ -91,8 +93,9 @@ def settled_levels(records, resolution: float | None = None) -> tuple[list[Level
 def settle_constant(segments, skip: int = 1) -> float:
     """The time constant (samples) of the levels' approach to their steady states, common to all:
     ``y = X_k + A_k exp(-t / tau) + B_k exp(-2 t / tau)`` (:func:`_approach`) fitted to every level
-    of at least 8 samples (X_k, A_k, B_k solved for, ``tau`` on a log grid from 0.3 samples to half the longest level; the first ``skip``
-    samples, where G's faster modes and the hold's own delay act, left out)."""
+    of at least 8 samples (X_k, A_k, B_k solved for; ``tau`` on a log grid from 0.3 samples to half
+    the longest level, then refined; the first ``skip`` samples, where G's faster modes and the
+    hold's own delay act, left out)."""
     segs = [y[skip:] for y in segments if y.size >= 8 + skip]
     if not segs:
         return 0.0
@@ -222,20 +225,21 @@ class HistoryFit:
             warns.append(f"misfit: chi2 = {chi2:.4g} on {dof} dof (p = {p:.2g}); the model does not reach the "
                          f"levels' own noise, intervals widened by sqrt(chi2/dof) = {np.sqrt(chi2 / dof):.3g}")
         z = stats.norm.ppf(0.975)
+        e_sd, e_gap = np.exp(theta[1]), np.exp(theta[2])
+        # the reported quantities and their gradients in (d_plus, ln S^d, ln(d_plus - d_minus))
+        quantities = {"d_plus": (theta[0], [1, 0, 0]), "slope_down": (e_sd, [0, e_sd, 0]),
+                      "d_minus": (theta[0] - e_gap, [1, 0, -e_gap]), "dead_band": (e_gap, [0, 0, e_gap])}
         ci = {}
-        for name, g in {"d_plus": [1, 0, 0], "slope_down": [0, np.exp(theta[1]), 0],
-                        "d_minus": [1, 0, -np.exp(theta[2])], "dead_band": [0, 0, np.exp(theta[2])]}.items():
+        for name, (value, g) in quantities.items():
             grad = np.zeros(full.size)
             grad[:3] = g
-            value = {"d_plus": theta[0], "slope_down": np.exp(theta[1]), "d_minus": theta[0] - np.exp(theta[2]),
-                     "dead_band": np.exp(theta[2])}[name]
             sd = float(np.sqrt(max(grad @ cov @ grad, 0.0)))
             ci[name] = (float(value - z * sd), float(value + z * sd))
         sd_c = np.sqrt(np.clip(np.diag(cov)[prob.n_outer:], 0, None))
         ci["h_coefficients"] = [(0.0, 0.0)] + [(float(a - z * s), float(a + z * s)) for a, s in zip(c, sd_c)]
         levels = tuple(Level(lv.record, lv.index, lv.u, lv.x, lv.se, lv.n, bool(s))
                        for lv, s in zip(prob.levels, prob.scored))
-        return HistoryResult(prob.type, float(np.exp(theta[1])), float(theta[0]), float(theta[0] - np.exp(theta[2])),
+        return HistoryResult(prob.type, float(e_sd), float(theta[0]), float(theta[0] - e_gap),
                              tuple([0.0] + [float(a) for a in c]), ci, chi2, int(dof), p, bool(misfit), levels,
                              table, tuple(warns))
 
@@ -246,6 +250,7 @@ class _Problem:
     def __init__(self, levels, names, kind: str, degree: int = 1):
         self.levels, self.names, self.type, self.degree = levels, names, kind, degree
         self.by_record = [[i for i, lv in enumerate(levels) if lv.record == name] for name in names]
+        self.u = np.array([lv.u for lv in levels])
         self.scored = np.ones(len(levels), bool)
         if kind != "backlash":
             for idx in self.by_record:
@@ -278,41 +283,31 @@ class _Problem:
         return np.array(lo), np.array(hi)
 
     def v(self, theta) -> np.ndarray:
-        """``F_bar`` run over each record's levels (eqs. 7a-b, 14a-b), slope_up = 1."""
+        """``F_bar`` run over each record's levels (eqs. 7a-b, 14a-b, :meth:`InputNonlinearity.steady`),
+        from the record's first level: for a backlash, the gear at the place inside the play that
+        ``theta`` gives; for a Backlash-Inverse, that level is not scored."""
         dp, sd, dm = theta[0], np.exp(theta[1]), theta[0] - np.exp(theta[2])
+        f = InputNonlinearity(self.type, 1.0, sd, dp, dm)
         v = np.empty(len(self.levels))
         for j, idx in enumerate(self.by_record):
+            u = self.u[idx]
+            state = 0.0
             if self.type == "backlash":
-                u0 = self.levels[idx[0]].u
-                lo, hi = u0 - dp, sd * (u0 - dm)
-                g = lo + (0.5 * (1 + np.tanh(0.5 * theta[3 + j]))) * (hi - lo)
-                for i in idx:
-                    u = self.levels[i].u
-                    g = min(max(g, u - dp), max(sd * (u - dm), u - dp))
-                    v[i] = g
-            else:
-                prev, g = None, 0.0
-                for i in idx:
-                    u = self.levels[i].u
-                    if prev is not None and u > prev:
-                        g = u + dp
-                    elif prev is not None and u < prev:
-                        g = u / sd + dm
-                    v[i] = g
-                    prev = u
+                lo, hi = f.ascending(u[0]), f.descending(u[0])
+                state = lo + 0.5 * (1 + np.tanh(0.5 * theta[3 + j])) * (hi - lo)
+            v[idx] = f.steady(u, state)
         return v[self.scored]
 
     def design(self, v) -> np.ndarray:
         return np.vander(v, self.degree + 1, increasing=True)[:, 1:] / self.se[:, None]
 
     def h(self, theta) -> np.ndarray:
-        a = self.design(self.v(theta))
-        return np.linalg.lstsq(a, self.x / self.se, rcond=None)[0]
+        """h_bar's coefficients ``c_1..c_p`` for the outer parameters ``theta`` (weighted least squares)."""
+        return np.linalg.lstsq(self.design(self.v(theta)), self.x / self.se, rcond=None)[0]
 
     def residual(self, theta) -> np.ndarray:
-        a = self.design(self.v(theta))
-        b = self.x / self.se
-        return b - a @ np.linalg.lstsq(a, b, rcond=None)[0]
+        """The weighted residuals with h_bar solved for (variable projection)."""
+        return self.full_residual(np.concatenate([theta, self.h(theta)]))
 
     def full_residual(self, full) -> np.ndarray:
         theta, c = full[:self.n_outer], full[self.n_outer:]
@@ -324,3 +319,11 @@ def identify_history(records, resolution: float | None = None, max_degree: int =
     """Settle every level of ``records`` and fit stage 1 on them (the module docstring)."""
     levels, warns = settled_levels(records, resolution)
     return HistoryFit(max_degree, types).fit(levels, warns).result_
+
+
+def identify_recorded(cfg, records) -> HistoryResult:
+    """Stage 1 of a recorded plant's ``records`` with the config's settings (``plant.output_resolution``,
+    ``identification.nonlinear.max_degree`` and ``input_type``)."""
+    nl = cfg.identification.nonlinear
+    types = ("backlash", "backlash_inverse") if nl.input_type == "auto" else (nl.input_type,)
+    return identify_history(records, cfg.plant.output_resolution, nl.max_degree, types)

@@ -8,7 +8,8 @@ eqs. 23-26) and ``|G|``, ``phi = -arg G`` are estimated with the harmonic model 
 
 * ``method="nls"`` (default): weighted nonlinear least squares of ``C_k = D_k(U|G|) e^{-jk phi}`` over
   every harmonic the model predicts: the maximum-likelihood estimate under Gaussian noise; 95 %
-  intervals from the Fisher information (which, evaluated at the estimate, is the Cramer-Rao bound).
+  intervals from the Fisher information (which, evaluated at the estimate, is the Cramer-Rao bound,
+  :mod:`hwid.identify.crlb`).
 * ``method="paper"``: eq. (37) generalised to any harmonic ``k`` and any polynomial: ``|G|`` from
   ``|D_k(U|G|)| = s_k`` (the root that best explains the other harmonics when ``k < p``), and
   ``phi = (arg D_k - psi_k)/k + 2 pi m / k`` with the k-fold ambiguity ``m`` resolved by the other
@@ -35,8 +36,9 @@ from numba import njit
 from scipy import stats
 
 from hwid import HwidError
-from hwid.blocks.static import polyval
-from hwid.identify.harmonics import HarmonicFit, HarmonicModel, fit_harmonics, period_sums, span_projector
+from hwid.identify.crlb import crlb
+from hwid.identify.harmonics import (DistortedHarmonics, HarmonicFit, HarmonicModel, distorted_harmonics,
+                                     fit_harmonics, period_sums, span_projector)
 from hwid.identify.lm import lm
 from hwid.identify.result import LinearResult
 
@@ -100,69 +102,6 @@ class KnownNonlinear:
             ws = np.concatenate(ws)
             w_range = (float(ws.min()), float(ws.max()))
         return cls(m.input, tuple(m.output.coefficients), w_range)
-
-
-# ------------------------------------------------------------------------------------------- the bound
-
-def fisher(h_coefficients, amplitude: float, gain: float, phase: float, component_var, harmonics=None,
-           input_gain: float = 1.0) -> np.ndarray:
-    """Fisher information of ``(|G|, phi)`` from the harmonic coefficients ``C_k`` (eq. 20).
-
-    ``component_var`` is the variance of Re C_k and Im C_k (scalar or one per harmonic)."""
-    hm = HarmonicModel(tuple(h_coefficients))
-    ks = hm.relevant() if harmonics is None else np.atleast_1d(harmonics).astype(int)
-    ks = ks[(ks >= 1) & (ks <= hm.degree)]
-    rho = amplitude * input_gain
-    v = np.broadcast_to(np.asarray(component_var, float), ks.shape)
-    C = hm.coefficients(rho * gain, phase, ks)
-    dg = rho * hm.dD(rho * gain, ks) * np.exp(-1j * ks * phase)
-    dp = -1j * ks * C
-    J = np.stack([dg, dp], axis=-1)                        # (K, 2) complex
-    return np.einsum("ki,kj->ij", J.conj(), J / v[:, None]).real
-
-
-def crlb(h_coefficients, amplitude: float, gain: float, phase: float, sigma: float, n_samples: int,
-         harmonics=None, input_gain: float = 1.0, component_var=None) -> tuple[float, float]:
-    """Cramer-Rao lower bounds on the variances of ``|G(j omega)|`` and ``phi(omega)``.
-
-    The output is ``y = h(U |G| sin(omega t - phi)) + offset + xi`` (eqs. 17, 18, 22) over
-    ``n_samples`` samples spanning whole periods, with white Gaussian ``xi`` of standard deviation
-    ``sigma`` and an unknown offset. The harmonic coefficients are then sufficient with component
-    variance ``2 sigma^2 / n_samples``, and the information is that of the model of eq. (20).
-
-    Parameters
-    ----------
-    h_coefficients : sequence of float
-        ``h`` (normalised, ascending powers).
-    amplitude : float
-        ``U`` of eq. (15).
-    gain, phase : float
-        ``|G(j omega)|`` and ``phi(omega)`` where the bound is evaluated.
-    sigma : float
-        Noise standard deviation.
-    n_samples : int
-        Number of samples used (whole periods).
-    harmonics : sequence of int, optional
-        Harmonics used (default: every harmonic the model predicts).
-    input_gain : float
-        ``|kappa|``, the input correction (hold, residual input nonlinearity); 1 by default.
-    component_var : array_like, optional
-        Per-harmonic variance of Re/Im C_k; overrides ``sigma`` and ``n_samples`` (coloured noise).
-
-    Returns
-    -------
-    (var_gain, var_phase) : tuple of float
-    """
-    if component_var is None:
-        if not (sigma > 0 and n_samples > 0):
-            raise ValueError("sigma and n_samples must be positive")
-        component_var = 2 * sigma ** 2 / n_samples
-    F = fisher(h_coefficients, amplitude, gain, phase, component_var, harmonics, input_gain)
-    try:
-        C = np.linalg.inv(F)
-    except np.linalg.LinAlgError:
-        return float("inf"), float("inf")
-    return float(C[0, 0]), float(C[1, 1])
 
 
 def _wrap(phi):
@@ -394,7 +333,7 @@ class LinearEstimator:
         self.crlb_ = crlb(hm.h_coefficients, U, self.gain_, self.phase_, hf.sigma, hf.n_samples, ks,
                           abs(kappa), component_var=var)
         self.predicted_ = hm.D(rho * self.gain_, ks) * np.exp(-1j * ks * (self.phase_ - th_k)) if W is None \
-            else _numeric_harmonics(hm, rho * self.gain_, self.phase_ - th_k, W, ks)[0]
+            else distorted_harmonics(hm, rho * self.gain_, self.phase_ - th_k, W, ks)[0]
 
         # -- extrapolation of h beyond the staircases' range (stage 1)
         lo, hi = (float(x) for x in nonlinear.w_range)
@@ -506,7 +445,7 @@ class LinearEstimator:
             x0 = np.array([g_grid[i], phis[j] + th_k])
         x0 = np.asarray(x0, float)
 
-        dist = _Distorted(hm, W, ks) if W is not None else None
+        dist = DistortedHarmonics(hm, W, ks) if W is not None else None
         last: dict = {}
 
         def model(x):
@@ -586,54 +525,6 @@ class LinearEstimator:
         var_p = vk / (k ** 2 * s ** 2) if s > 0 else np.inf
         return {"gain": float(g), "phase": float(phi), "cov": np.diag([var_g, var_p]), "harmonic": int(k),
                 "roots": [r_ / rho for r_ in roots]}
-
-
-class _Distorted:
-    """The harmonic model of eq. (20) with a distorted input, evaluated numerically: the harmonics
-    ``C_k`` of ``h(r sin(theta - phi) + d(theta))`` and their derivatives in ``r`` and ``phi``, by
-    the FFT of one period of ``M`` points (``d = W_0 + sum_{k>=2} Im(W_k e^{j k theta})``: the
-    input distortion). The grid, ``d`` and ``h'`` are prepared once; each call costs two
-    polynomial evaluations and one real FFT of three rows (the same operations, value for value, as
-    a fresh evaluation)."""
-
-    def __init__(self, hm: HarmonicModel, W, ks, M: int | None = None):
-        W = np.asarray(W, complex)
-        self.ks = np.asarray(ks)
-        if M is None:
-            M = 1 << int(np.ceil(np.log2(8 * max(hm.degree, 1) * max(len(W), int(self.ks.max()) + 1))))
-        self.M = M
-        self.th = 2 * np.pi * np.arange(M) / M
-        d = np.full(M, float(np.real(W[0])))
-        E = _rotations(M, len(W))
-        for k in range(2, len(W)):
-            d += np.imag(W[k] * E[k])
-        self.d = d
-        self.c = np.asarray(hm.h_coefficients, float)
-        self.dc = np.polynomial.polynomial.polyder(self.c)
-
-    def __call__(self, r: float, phi: float):
-        sn, cs = np.sin(self.th - phi), np.cos(self.th - phi)
-        w = r * sn + self.d
-        x = polyval(w, self.c)
-        hp = polyval(w, self.dc)
-        F = np.fft.rfft(np.stack([x, hp * sn, -hp * r * cs]), axis=1)[:, self.ks] / self.M
-        C = -2 * F.imag + 2j * F.real
-        return C[0], C[1], C[2]
-
-
-@lru_cache(maxsize=16)
-def _rotations(M: int, K: int) -> np.ndarray:
-    """``e^{j k theta}`` on the grid ``theta = 2 pi m / M``, rows ``k = 0..K-1`` (read only)."""
-    th = 2 * np.pi * np.arange(M) / M
-    E = np.array([np.exp(1j * k * th) for k in range(K)])
-    E.flags.writeable = False
-    return E
-
-
-def _numeric_harmonics(hm: HarmonicModel, r: float, phi: float, W, ks, M: int | None = None):
-    """Harmonics ``C_k`` of ``h(r sin(theta - phi) + d(theta))`` and their derivatives in ``r`` and ``phi``,
-    by the FFT of one period (``d = W_0 + sum_{k>=2} Im(W_k e^{j k theta})``: the input distortion)."""
-    return _Distorted(hm, W, ks, M)(r, phi)
 
 
 # -------------------------------------------------------------------------------------------- results

@@ -345,9 +345,9 @@ class WholeModelFit:
         the price of slightly wider intervals)."""
         f, g, states = prob.unpack(theta)
         h = prob.h(theta)
-        ci, s2, r, warnings = self._intervals(prob, theta)
+        ci, s2, r, warnings = self._intervals(prob, theta, h)
         if richer is not None:
-            wider, *_ = self._intervals(*richer)
+            wider, *_ = self._intervals(*richer, richer[0].h(richer[1]))
             for name in ("d_plus", "d_minus", "slope_down"):
                 ci[name] = (min(ci[name][0], wider[name][0]), max(ci[name][1], wider[name][1]))
         if prob.degree == self.max_degree:
@@ -358,10 +358,9 @@ class WholeModelFit:
                            float(np.sqrt(np.mean(r * r))), int(r.size), init, tuple(table), tuple(warnings))
 
     @staticmethod
-    def _intervals(prob: _Problem, theta) -> tuple[dict, float, np.ndarray, list]:
-        """95 % intervals of the borders, the slope and h_bar's coefficients of the fit ``theta``
-        of ``prob``; with the residual variance, the residual and the warnings they raise."""
-        h = prob.h(theta)
+    def _intervals(prob: _Problem, theta, h) -> tuple[dict, float, np.ndarray, list]:
+        """95 % intervals of the borders, the slope and h_bar's coefficients ``h`` of the fit
+        ``theta`` of ``prob``; with the residual variance, the residual and the warnings they raise."""
         full = np.concatenate([theta, h[1:]])
         r = prob.full_residual(full)
         n, k = r.size, full.size
