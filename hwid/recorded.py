@@ -12,7 +12,8 @@ and listed by ``hwid report``):
 * a gap in time longer than ``3 dt`` splits the record (never bridged);
 * interior NaN runs of at most 2 samples are interpolated (counted); longer ones split the record;
 * uneven timestamps go onto the ``dt`` grid: the input by zero-order hold (a rig holds its
-  command), the output by linear interpolation; the jitter of the sampling interval is reported;
+  command, from the grid point nearest its timestamp), the output by linear interpolation; the
+  jitter of the sampling interval is reported;
 * the output's resolution (its quantum, e.g. one encoder count) is given or detected;
 * ``role: auto`` finds the piecewise-constant stretches of the input (levels, with the direction
   each was approached from).
@@ -221,6 +222,7 @@ def load_experiment(exp, index: int, base: Path, dt: float, resolution: float | 
         raise RecordError(f"{where}: no stretch of at least {MIN_SAMPLES} samples without a gap "
                           f"longer than {GAP_DT:g} dt or a NaN run longer than {MAX_NAN_RUN}")
     step = np.diff(t)
+    step = step[step <= GAP_DT * dt]      # a pause of the logger splits the record; it is not jitter
     provenance = {"source_file": str(path), "source_sha256": sha256(path),
                   "columns": json.dumps({"input": exp.input.column, "output": exp.output.column,
                                          "time": None if exp.time is None else exp.time.column}),
@@ -324,10 +326,14 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def resample(t, u, y, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """``u`` (zero-order hold) and ``y`` (linear) on the grid ``t[0] + k dt``."""
+    """``u`` (zero-order hold) and ``y`` (linear) on the grid ``t[0] + k dt``.
+
+    A command holds from the grid point nearest its timestamp: a logger whose clock jitters by less
+    than half a sample around the grid its rig runs on keeps every command on its own sample, where
+    holding strictly from the stamp would delay a late-stamped command by a whole sample."""
     n = int(np.floor((t[-1] - t[0]) / dt + 1e-9)) + 1
     grid = t[0] + np.arange(n) * dt
-    held = np.clip(np.searchsorted(t, grid + 1e-9 * dt, side="right") - 1, 0, t.size - 1)
+    held = np.clip(np.searchsorted(t, grid + 0.5 * dt, side="left") - 1, 0, t.size - 1)
     return u[held], np.interp(grid, t, y)
 
 

@@ -79,7 +79,8 @@ def test_sensor_lag_named_with_its_time_constant(lag):
 
 def test_plain_plant_is_none(plain):
     s, _ = plain
-    assert s["verdict"] == {"effect": "none", "block": "none", "explained_fraction": 0.0}
+    assert s["verdict"] == {"effect": "none", "block": "none", "explained_fraction": 0.0,
+                           "indistinguishable_from": []}
     assert s["gap_before"] < 1.05 * s["noise_floor"]
     assert not s["test"]["significant"]
     assert s["residual_structure"] == []
@@ -92,7 +93,8 @@ def test_plain_plant_is_none_whatever_state_the_rig_starts_each_call_in(tmp_path
     own simulator as the model, on a rig that parks its gear against a random border, or anywhere
     inside the play with G at a random level, before every call."""
     s, _ = _run(tmp_path_factory, driver, base_model)
-    assert s["verdict"] == {"effect": "none", "block": "none", "explained_fraction": 0.0}
+    assert s["verdict"] == {"effect": "none", "block": "none", "explained_fraction": 0.0,
+                           "indistinguishable_from": []}
     assert s["gap_before"] < 1.05 * s["noise_floor"]
     assert not s["test"]["significant"]
 
@@ -153,7 +155,7 @@ def test_json_keys_and_h5(lag):
     s, tmp = lag
     data = json.loads((tmp / "out" / "diagnosis.json").read_text())
     assert set(data) >= {"verdict", "gap_before", "gap_after", "noise_floor", "where", "candidates"}
-    assert set(data["verdict"]) == {"effect", "block", "explained_fraction"}
+    assert set(data["verdict"]) == {"effect", "block", "explained_fraction", "indistinguishable_from"}
     assert set(data["where"]) >= {"experiments", "region", "frequencies", "trend"}
     assert {c["effect"] for c in data["candidates"]} == set(CATALOGUE)
     for c in data["candidates"]:

@@ -64,7 +64,8 @@ def test_identified_experiments_stay_inside_the_identified_range(rate):
 
 def test_identified_plain_plant_is_none(tmp_path_factory):
     s = _run(tmp_path_factory, "plain")
-    assert s["verdict"] == {"effect": "none", "block": "none", "explained_fraction": 0.0}
+    assert s["verdict"] == {"effect": "none", "block": "none", "explained_fraction": 0.0,
+                           "indistinguishable_from": []}
     assert not s["test"]["significant"]
 
 

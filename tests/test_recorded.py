@@ -53,7 +53,7 @@ def test_jittered_iso_csv_goes_onto_the_grid(tmp_path):
                      input={"column": "target"}, output={"column": 2, "scale": 0.5, "offset": 1.0})
     [rec] = load_records(cfg)
     grid = np.arange(rec.u.size) * DT
-    held = u[np.searchsorted(t, grid + 1e-9, side="right") - 1]
+    held = u[np.searchsorted(t, grid + 0.5 * DT, side="left") - 1]      # from the grid point nearest its stamp
     assert np.array_equal(rec.u, held)                                   # zero-order hold of the command
     np.testing.assert_allclose(rec.y, 0.5 * np.interp(grid, t, y) + 1.0, atol=1e-5)
     assert rec.attrs["rows_dropped_leading"] == 2 and rec.attrs["rows_dropped_trailing"] == 2
@@ -128,9 +128,14 @@ def test_level_segments_directions():
 
 
 def test_resample_holds_the_command_and_interpolates_the_output():
+    # each command holds from the grid point nearest its stamp; one stamped half a sample late or
+    # more starts a sample later
     t = np.array([0.0, 0.12, 0.19, 0.31])
     u_grid, y_grid = resample(t, np.array([1.0, 2.0, 3.0, 4.0]), np.array([0.0, 1.2, 1.9, 3.1]), 0.1)
-    assert u_grid.tolist() == [1.0, 1.0, 3.0, 3.0] and y_grid == pytest.approx([0.0, 1.0, 2.0, 3.0])
+    assert u_grid.tolist() == [1.0, 2.0, 3.0, 4.0] and y_grid == pytest.approx([0.0, 1.0, 2.0, 3.0])
+    t = np.array([0.0, 0.16, 0.2, 0.3])
+    u_grid, _ = resample(t, np.array([1.0, 2.0, 3.0, 4.0]), np.zeros(4), 0.1)
+    assert u_grid.tolist() == [1.0, 1.0, 3.0, 4.0]
 
 
 def test_cli_simulate_writes_the_records_with_their_provenance(tmp_path, capsys):

@@ -8,17 +8,33 @@ Each case is a directory with
 * ``config.yaml`` -- the config a user would write for that rig (identification protocols);
 * ``model.yaml`` -- the rig's own simulator without the effect (the sim side for ``--model``).
 
+With ``--recorded`` each case also gets
+
+* ``lab.csv`` -- one ordinary lab run of the hidden rig, logged like a lab logs (not hwid's own
+  protocols): a staircase up and down, three plain sines, steps of three sizes from the centre, a
+  slow and a faster triangle, one long hold; each part one call of the rig (its between-call
+  behaviour at every part's start), the logger paused 5-20 s between parts. Columns ``timestamp``
+  (ISO 8601, ms, jittered by +-3 % of dt), ``command`` and ``position`` in raw units (counts, a
+  per-case scale and offset), ``temperature`` (a distractor);
+* ``recorded.yaml`` -- the recorded-plant config a lab user would write for that file.
+
 The labels go to ``sealed.json`` beside the cases, which the runner opens only after every
-diagnosis is done. Usage: ``python generate.py OUTDIR [--cases 40] [--seed 2024]``.
+diagnosis is done. Usage: ``python generate.py OUTDIR [--cases 40] [--seed 2024] [--recorded]``.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 import yaml
+
+HERE = Path(__file__).resolve().parent
+if str(HERE) not in sys.path:
+    sys.path.insert(0, str(HERE))
+import rigkit  # noqa: E402
 
 CATALOGUE = ["input_saturation", "rate_limit", "input_deadzone", "curved_borders", "time_delay",
              "resonance", "sensor_lag", "sensor_saturation", "drift"]
@@ -109,6 +125,106 @@ def effect_params(effect: str, b: dict, rng: np.random.Generator) -> dict:
     raise ValueError(effect)
 
 
+# ------------------------------------------------------------------------------ the lab run (--recorded)
+
+#: the lab run's parts, in order; each is one call of the rig
+LAB_PARTS = ["staircase", "sines", "steps", "triangles", "hold"]
+#: the pause of the logger between parts (s): longer than 3 dt, so a reader splits the record there
+LAB_PAUSE = (5.0, 20.0)
+#: sample-time jitter of the logger, a fraction of dt (uniform, +-)
+LAB_JITTER = 0.03
+
+
+def lab_inputs(b: dict) -> list[np.ndarray]:
+    """The fixed lab run of a base plant (model units, one array per part): the log a lab already
+    has, not hwid's protocols."""
+    dt, hold = b["dt"], b["hold"]
+    lo, hi = b["levels"]
+    c, H = 0.5 * (lo + hi), 0.5 * (hi - lo)
+
+    def held(levels, seconds):
+        return np.repeat(np.round(np.asarray(levels, float), 4), int(round(seconds / dt)))
+
+    # (a) a staircase up and down over the levels range (the same 8 levels each way)
+    grid = np.linspace(lo, hi, 8)
+    staircase = held(np.concatenate([grid, grid[::-1][1:]]), hold)
+    # (b) plain sines around the centre, 0.8 of the half range, 4 periods each, not pre-compensated
+    sines = []
+    for w in b["freqs"][1:4]:
+        n = int(round(4 * 2 * np.pi / w / dt))
+        sines.append(c + 0.8 * H * np.sin(w * dt * np.arange(n)))
+    # (c) steps from the centre to +-0.25, +-0.5, +-0.9 of the half range and back
+    steps = [c]
+    for f in (0.25, 0.5, 0.9):
+        for sgn in (1.0, -1.0):
+            steps += [c + sgn * f * H, c]
+    # (d) a slow and a faster triangle (peak to peak 0.95 of the range, two periods each; a whole
+    # number of samples a quarter period, so a peak is one sample, not two equal ones)
+    tris = []
+    for period in (4 * hold, hold):
+        quarter = int(round(period / dt / 4))
+        k = np.arange(8 * quarter)
+        tris.append(c + 0.95 * H * (1 - np.abs(((k + quarter) % (4 * quarter)) / quarter - 2.0)))
+    # (e) one long hold
+    return [staircase, np.concatenate(sines), held(steps, hold), np.concatenate(tris),
+            held([c + 0.4 * H], 3 * hold)]
+
+
+def lab_run(params: dict, b: dict, rng: np.random.Generator) -> dict:
+    """The hidden rig through the lab run (a fresh state: a new session on the machine): the
+    parts' inputs and outputs, the logger's timestamps, and the raw channels' scales."""
+    state: dict = {}
+    dt = b["dt"]
+    parts = [(u, rigkit.run(params, state, u, dt)) for u in lab_inputs(b)]
+    t, t_next = [], 0.0
+    for u, _ in parts:
+        nominal = t_next + dt * np.arange(u.size)
+        t.append(nominal + rng.uniform(-LAB_JITTER, LAB_JITTER, u.size) * dt)
+        t_next = nominal[-1] + dt + rng.uniform(*LAB_PAUSE)
+    # raw = (value - offset) / scale: counts per model unit and a zero in counts, per channel
+    chan = {}
+    for name in ("input", "output"):
+        counts = int(rng.integers(100, 2001))
+        zero = int(rng.integers(-3000, 3001))
+        scale = 1.0 / counts
+        chan[name] = {"scale": scale, "offset": -zero * scale}
+    start = np.datetime64("2019-01-01T00:00:00", "ms") + np.timedelta64(int(rng.integers(0, 4 * 365)), "D") \
+        + np.timedelta64(int(rng.integers(7 * 3600, 17 * 3600)) * 1000 + int(rng.integers(0, 1000)), "ms")
+    return {"parts": parts, "t": t, "channels": chan, "start": start,
+            "temperature": (float(rng.uniform(19.0, 26.0)), int(rng.integers(2**31)))}
+
+
+def write_lab(d: Path, cid: str, i: int, b: dict, run: dict) -> dict:
+    """``lab.csv`` and ``recorded.yaml`` in the case directory; returns counts for the log line."""
+    u = np.concatenate([p[0] for p in run["parts"]])
+    y = np.concatenate([p[1] for p in run["parts"]])
+    t = np.concatenate(run["t"])
+    ci, co = run["channels"]["input"], run["channels"]["output"]
+    raw_u = (u - ci["offset"]) / ci["scale"]
+    raw_y = (y - co["offset"]) / co["scale"]
+    stamps = run["start"] + np.round(t * 1000.0).astype(np.int64).astype("timedelta64[ms]")
+    if np.any(np.diff(stamps) <= np.timedelta64(0, "ms")):
+        raise RuntimeError(f"{cid}: lab timestamps do not increase")
+    iso = np.datetime_as_string(stamps, unit="ms")
+    t0, tseed = run["temperature"]
+    trng = np.random.default_rng(tseed)
+    temp = t0 + 0.3 * np.sin(2 * np.pi * t / 1800.0 + trng.uniform(0, 2 * np.pi)) + 0.02 * trng.standard_normal(t.size)
+    # raw values to 1e-6 counts: the noise is at least 0.5 counts (0.005 units x 100 counts/unit),
+    # so the rounding is below 1e-5 of its std
+    with open(d / "lab.csv", "w", newline="") as fh:
+        fh.write("timestamp,command,position,temperature\n")
+        fh.writelines(f"{s},{a:.6f},{v:.6f},{c:.2f}\n" for s, a, v, c in zip(iso, raw_u, raw_y, temp))
+    cfg = {"name": f"lab-{cid}", "seed": 7 + i, "sampling": {"dt": b["dt"]},
+           "plant": {"kind": "recorded", "experiments": [
+               {"file": "lab.csv", "time": {"column": "timestamp"},
+                "input": {"column": "command", "scale": ci["scale"], "offset": ci["offset"]},
+                "output": {"column": "position", "scale": co["scale"], "offset": co["offset"]},
+                "role": "auto"}]}}
+    (d / "recorded.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
+    return {"rows": int(t.size), "parts": [int(p[0].size) for p in run["parts"]],
+            "rig_seconds": float(sum(p[0].size for p in run["parts"]) * b["dt"])}
+
+
 RIG = '''"""A hidden rig of the blind diagnosis check (generated)."""
 import json
 import rigkit
@@ -122,7 +238,7 @@ def rig(u, dt):
 '''
 
 
-def generate(out: Path, n_cases: int = 40, seed: int = 2024) -> list[str]:
+def generate(out: Path, n_cases: int = 40, seed: int = 2024, recorded: bool = False) -> list[str]:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     ss = np.random.SeedSequence(seed)
@@ -136,6 +252,10 @@ def generate(out: Path, n_cases: int = 40, seed: int = 2024) -> list[str]:
     sealed = {}
     ids = []
     case_seeds = ss.spawn(len(labels))
+    # the lab runs' own random numbers (jitter, scales, pauses): spawned after everything else, so
+    # the rigs, configs and labels for a seed are the same with or without --recorded
+    lab_seeds = ss.spawn(1)[0].spawn(len(labels))
+    lab_log = {}
     for i, label in enumerate(labels):
         if label == "second_nonlinearity":
             base = ["paper", "third_order"][i % 2]
@@ -165,9 +285,18 @@ def generate(out: Path, n_cases: int = 40, seed: int = 2024) -> list[str]:
                            "linear": {"num": b["G"]["num"], "den": b["G"]["den"]},
                            "output_nonlinearity": {"polynomial": b["h"]}, "noise": b["noise"]}}
         (d / "model.yaml").write_text(yaml.safe_dump(model, sort_keys=False))
+        if recorded:
+            run = lab_run(json.loads(json.dumps(params)), b, np.random.default_rng(lab_seeds[i]))
+            lab_log[cid] = {"base": base, **write_lab(d, cid, i, b, run)}
         sealed[cid] = {"label": label, "base": base, "params": ep, "between_calls": between, "actuator": actuator}
         ids.append(cid)
     (out / "sealed.json").write_text(json.dumps(sealed, indent=1))
+    if recorded:
+        for base in BASES:
+            seen = [v for v in lab_log.values() if v["base"] == base]
+            if seen:
+                print(f"lab run, {base} base: {seen[0]['rig_seconds']:.0f} rig-s, {seen[0]['rows']} rows "
+                      f"(parts {seen[0]['parts']}), {len(seen)} case(s)")
     return ids
 
 
@@ -176,5 +305,7 @@ if __name__ == "__main__":
     ap.add_argument("out")
     ap.add_argument("--cases", type=int, default=40)
     ap.add_argument("--seed", type=int, default=2024)
+    ap.add_argument("--recorded", action="store_true",
+                    help="also write lab.csv (one ordinary lab run of each rig) and recorded.yaml per case")
     a = ap.parse_args()
-    print(f"{len(generate(Path(a.out), a.cases, a.seed))} cases in {a.out} (labels sealed in sealed.json)")
+    print(f"{len(generate(Path(a.out), a.cases, a.seed, a.recorded))} cases in {a.out} (labels sealed in sealed.json)")

@@ -7,10 +7,19 @@ Usage::
     python run.py /tmp/blind --way model      # the rig's own simulator as --model
     python run.py /tmp/blind --way identify   # no --model: hwid identifies the model first
 
+    python generate.py /tmp/blind --recorded  # also lab.csv + recorded.yaml per case
+    python run.py /tmp/blind --way recorded-model     # the lab log as the plant, the rig's simulator as --model
+    python run.py /tmp/blind --way recorded-identify  # the lab log only: hwid identifies from it first
+
 Prints a confusion matrix (truth rows, verdict columns; effects outside the catalogue are one row,
 ``outside``), the accuracy (an outside effect counts as correct when called ``unexplained``), false
 alarms on plain rigs, gap after / noise floor for correct verdicts, and time, plant calls and
 rig-seconds per diagnosis. Writes ``RESULTS-<way>.json`` beside the cases.
+
+The recorded ways (``recorded-model``, ``recorded-identify``) diagnose ``CASE/recorded.yaml`` (one
+logged lab run of the rig, no plant calls). Their verdicts are scored as above, and also with half
+credit: a catalogue effect that is not the verdict but is in the verdict's
+``indistinguishable_from`` counts one half.
 """
 from __future__ import annotations
 
@@ -28,13 +37,19 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 CATALOGUE = ["input_saturation", "rate_limit", "input_deadzone", "curved_borders", "time_delay",
              "resonance", "sensor_lag", "sensor_saturation", "drift"]
+WAYS = ["model", "identify", "recorded-model", "recorded-identify"]
+
+
+def _config(way: str) -> str:
+    """The case's config a way diagnoses: the rig (``config.yaml``) or its lab log (``recorded.yaml``)."""
+    return "recorded.yaml" if way.startswith("recorded") else "config.yaml"
 
 
 def diagnose_case(case: Path, way: str) -> dict:
     out = case / f"out-{way}"
     js = case / f"diagnosis-{way}.json"
-    cmd = [sys.executable, "-m", "hwid", "diagnose", str(case / "config.yaml"), "--out", str(out), "--json", str(js)]
-    if way == "model":
+    cmd = [sys.executable, "-m", "hwid", "diagnose", str(case / _config(way)), "--out", str(out), "--json", str(js)]
+    if way in ("model", "recorded-model"):
         cmd[4:4] = ["--model", str(case / "model.yaml")]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(case), str(HERE), os.environ.get("PYTHONPATH", "")]),
            "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
@@ -44,17 +59,30 @@ def diagnose_case(case: Path, way: str) -> dict:
     if p.returncode != 0:
         return {"case": case.name, "error": (p.stderr or p.stdout).strip().splitlines()[-1:], "seconds": dt}
     s = json.loads(js.read_text())
-    return {"case": case.name, "seconds": dt, "verdict": s["verdict"], "gap_before": s["gap_before"],
-            "gap_after": s["gap_after"], "noise_floor": s["noise_floor"], "cost": s["cost"],
-            "top": [(c["effect"], round(c["explained_fraction"], 3)) for c in s["candidates"][:3]],
-            "region": s["where"]["region"], "trend": s["where"]["trend"]}
+    where = s.get("where") or {}
+    return {"case": case.name, "seconds": dt, "verdict": s["verdict"], "gap_before": s.get("gap_before"),
+            "gap_after": s.get("gap_after"), "noise_floor": s.get("noise_floor"), "cost": s.get("cost") or {},
+            "top": [(c["effect"], round(c["explained_fraction"], 3)) for c in s.get("candidates", [])[:3]],
+            "region": where.get("region"), "trend": where.get("trend")}
 
 
-def score(results: list[dict], sealed: dict) -> dict:
+def _calls(cost: dict) -> float:
+    """Plant calls of a diagnosis (none for a recorded one)."""
+    return cost.get("plant_calls_identification", 0) + cost.get("plant_calls_validation", 0)
+
+
+def _rig_seconds(cost: dict) -> float:
+    return cost.get("rig_seconds_identification", 0) + cost.get("rig_seconds_validation", 0)
+
+
+def score(results: list[dict], sealed: dict, half_credit: bool = False) -> dict:
+    """The table; with ``half_credit`` (the recorded ways) also ``credit``: a catalogue truth that is
+    not the verdict but in its ``indistinguishable_from`` counts 0.5 (``halves`` of them)."""
     rows = ["none"] + CATALOGUE + ["outside"]
     cols = ["none"] + CATALOGUE + ["unexplained", "error"]
     M = {r: {c: 0 for c in cols} for r in rows}
     correct, ratios, details = 0, [], []
+    credit, halves = 0.0, 0
     for r in results:
         truth = sealed[r["case"]]["label"]
         row = truth if truth in rows else "outside"
@@ -62,15 +90,20 @@ def score(results: list[dict], sealed: dict) -> dict:
         M[row][got] += 1
         ok = (got == truth) or (row == "outside" and got == "unexplained")
         correct += ok
-        if ok and got in CATALOGUE:
+        alike = [] if "error" in r else list(r["verdict"].get("indistinguishable_from") or [])
+        half = (not ok) and truth in CATALOGUE and truth in alike
+        credit += 1.0 if ok else (0.5 if half else 0.0)
+        halves += bool(half)
+        if ok and got in CATALOGUE and r.get("gap_after") is not None and r.get("noise_floor"):
             ratios.append(r["gap_after"] / r["noise_floor"])
         details.append({**r, "truth": truth, "base": sealed[r["case"]]["base"], "truth_params": sealed[r["case"]]["params"],
-                        "correct": bool(ok)})
+                        "correct": bool(ok), **({"credit": 1.0 if ok else (0.5 if half else 0.0)} if half_credit else {})})
     n_none = sum(M["none"].values())
     n_out = sum(M["outside"].values())
     ok_runs = [r for r in results if "error" not in r]
+    extra = {"credit": credit, "halves": halves, "accuracy_half_credit": credit / max(len(results), 1)} if half_credit else {}
     return {"matrix": M, "rows": rows, "cols": cols, "n": len(results), "correct": int(correct),
-            "accuracy": correct / max(len(results), 1),
+            "accuracy": correct / max(len(results), 1), **extra,
             "false_alarms_on_none": n_none - M["none"]["none"], "n_none": n_none,
             "outside_unexplained": M["outside"]["unexplained"], "n_outside": n_out,
             "gap_after_over_noise_correct": {"max": max(ratios, default=float("nan")),
@@ -78,8 +111,8 @@ def score(results: list[dict], sealed: dict) -> dict:
                                              "within_1.5": int(sum(x <= 1.5 for x in ratios)), "n": len(ratios)},
             "seconds": {"median": float(np.median([r["seconds"] for r in results])),
                         "max": float(max(r["seconds"] for r in results))},
-            "plant_calls": {"median": float(np.median([r["cost"]["plant_calls_identification"] + r["cost"]["plant_calls_validation"] for r in ok_runs])) if ok_runs else 0},
-            "rig_seconds": {"median": float(np.median([r["cost"]["rig_seconds_identification"] + r["cost"]["rig_seconds_validation"] for r in ok_runs])) if ok_runs else 0},
+            "plant_calls": {"median": float(np.median([_calls(r["cost"]) for r in ok_runs])) if ok_runs else 0},
+            "rig_seconds": {"median": float(np.median([_rig_seconds(r["cost"]) for r in ok_runs])) if ok_runs else 0},
             "details": details}
 
 
@@ -88,6 +121,9 @@ def print_table(sc: dict, way: str) -> None:
              "curved_borders": "curv", "time_delay": "delay", "resonance": "reso", "sensor_lag": "lag",
              "sensor_saturation": "y_sat", "drift": "drift", "unexplained": "unexp", "error": "err", "outside": "outside"}
     print(f"\nblind check, way = {way}: {sc['correct']}/{sc['n']} correct ({100 * sc['accuracy']:.0f} %)")
+    if "credit" in sc:
+        print(f"correct (half credit for indistinguishable): {sc['credit']:g}/{sc['n']} "
+              f"({100 * sc['accuracy_half_credit']:.0f} %), {sc['halves']} half(s)")
     print("truth \\ verdict".ljust(18) + "".join(short[c].rjust(7) for c in sc["cols"]))
     for r in sc["rows"]:
         if sum(sc["matrix"][r].values()) == 0:
@@ -102,19 +138,24 @@ def print_table(sc: dict, way: str) -> None:
           f"median {sc['plant_calls']['median']:.0f} plant calls, {sc['rig_seconds']['median']:.0f} rig-seconds")
     for d in sc["details"]:
         if not d["correct"]:
+            half = " [half credit: indistinguishable]" if d.get("credit") == 0.5 else ""
             print(f"  wrong: {d['case']} ({d['base']}) truth {d['truth']} {d['truth_params']} -> "
-                  f"{d.get('verdict', d.get('error'))} top {d.get('top')}")
+                  f"{d.get('verdict', d.get('error'))} top {d.get('top')}{half}")
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("cases")
-    ap.add_argument("--way", choices=["model", "identify"], default="model")
+    ap.add_argument("--way", choices=WAYS, default="model")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--only", nargs="*", help="case ids (default: all)")
     a = ap.parse_args()
     root = Path(a.cases)
     cases = sorted(p for p in root.iterdir() if p.is_dir() and (p / "config.yaml").exists())
+    if a.way.startswith("recorded"):
+        missing = [c.name for c in cases if not (c / "recorded.yaml").exists()]
+        if missing:
+            sys.exit(f"{len(missing)} case(s) without recorded.yaml (e.g. {missing[0]}): generate with --recorded")
     if a.only:
         cases = [c for c in cases if c.name in a.only]
     t0 = time.perf_counter()
@@ -125,7 +166,7 @@ def main():
             results.append(r)
     # only now: the labels
     sealed = json.loads((root / "sealed.json").read_text())
-    sc = score(results, sealed)
+    sc = score(results, sealed, half_credit=a.way.startswith("recorded"))
     sc["wall_seconds"] = time.perf_counter() - t0
     print_table(sc, a.way)
     (root / f"RESULTS-{a.way}.json").write_text(json.dumps(sc, indent=1, default=str))

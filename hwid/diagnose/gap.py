@@ -118,6 +118,51 @@ def noise_floor(pairs, width: int, y_scale: float) -> NoiseFloor:
     return NoiseFloor(sigma, kappa, int(e.size), float(np.sqrt(p_slow)), slow_z, e)
 
 
+def noise_floor_from_holds(holds, width: int, y_scale: float) -> NoiseFloor:
+    """Noise floor from the settled parts of held inputs (``holds``: the output over each), for
+    records without repeats: the output is constant there but for noise and what moves slowly.
+
+    Each hold less its mean and its zero-phase moving average over ``width`` samples is a sample of
+    the fast noise (variance restored by ``M/(M-1)``); ``sigma`` is the median of the holds'
+    standard deviations (a hold that still rings does not set the floor of the others). The slow
+    part is the holds' block means of ``width`` samples against ``sigma^2 kappa / width``: large
+    ``slow_z`` means the output wanders at a constant input (a drift)."""
+    parts, bm, dof = [], [], 0
+    for y in holds:
+        d = np.asarray(y, float) - float(np.mean(y))
+        if d.size < 20:
+            continue
+        m = int(min(max(width, 20), d.size))
+        parts.append((d - smooth(d, m)) * np.sqrt(m / max(m - 1, 1)))
+        nb = d.size // m
+        if nb >= 2:
+            blocks = d[d.size - nb * m:].reshape(nb, m).mean(axis=1)
+            bm.append(blocks - blocks.mean())
+            dof += nb - 1
+    if not parts:
+        return NoiseFloor(1e-6 * y_scale, 1.0, 0, 0.0, 0.0, np.zeros(0))
+    e = np.concatenate(parts)
+    sigma = float(max(np.median([np.std(p) for p in parts]), 1e-6 * y_scale))
+    kappa = _kappa(e)
+    m = max(width, 20)
+    null = sigma ** 2 * kappa / m
+    p_slow = float(sum(float(b @ b) for b in bm) / dof) if dof else 0.0
+    slow_z = float((p_slow / null - 1) / np.sqrt(2.0 / dof)) if dof else 0.0
+    return NoiseFloor(sigma, kappa, int(e.size), float(np.sqrt(p_slow)), slow_z, e)
+
+
+def noise_floor_from_residual(residuals, y_scale: float) -> NoiseFloor:
+    """Noise floor from the high-frequency part of a model's residuals, ``mean(diff(r)^2) / 2``
+    (white noise; a model error smooth on the scale of a sample cancels in the difference), for
+    records with neither repeats nor settled holds. Its correlation and slow part are unknown
+    (``kappa`` 1, ``slow_z`` 0)."""
+    diffs = [np.diff(np.asarray(r, float)) for r in residuals if np.size(r) > 2]
+    if not diffs:
+        return NoiseFloor(1e-6 * y_scale, 1.0, 0, 0.0, 0.0, np.zeros(0))
+    d = np.concatenate(diffs) / np.sqrt(2.0)
+    return NoiseFloor(float(max(np.sqrt(np.mean(d * d)), 1e-6 * y_scale)), 1.0, int(d.size), 0.0, 0.0, d)
+
+
 def rms(x) -> float:
     x = np.asarray(x, float)
     return float(np.sqrt(np.mean(x * x))) if x.size else 0.0

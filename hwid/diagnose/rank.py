@@ -565,7 +565,36 @@ class EffectFitter:
         if self.refit_g:
             c.model = self.model_dict(self.g_p if eff.disturbance else self._split(eff, theta)[1])
         c.at_bound = bool(eff.at_defining_bound(theta))
+        c.theta = np.asarray(theta, float)
         return c
+
+    def predict_on(self, eff, theta, inputs) -> list[np.ndarray]:
+        """The candidate fitted as ``eff`` at ``theta`` (its own parameters, then the model's)
+        simulated on new ``inputs``, from the model's default initial state: its h from the fit
+        data, as in its fit. A disturbance (``drift``) predicts nothing new: the refit model alone."""
+        from hwid.blocks.static import PolynomialH
+        from hwid.model import HWModel
+        if eff is not None and eff.disturbance:
+            eff, theta = None, None
+        dt = self.sf.dt
+        if not self.refit_h:
+            sim = effect_models.ModelSim(self.sf.model, dt, inputs)
+            return [sim.x[i] if eff is None else eff.simulate(sim, theta, i) for i in range(len(inputs))]
+        c = self._h_coef(eff, theta, self._designs(eff, theta, "fit"))
+        if self.refit_g:
+            own, g = self._split(eff, theta)
+            F, G = self.input_nl(g), self.linear(g)
+        else:
+            own, F, G = theta, self.sfw.model.input, self.sfw.model.linear
+        simw = effect_models.ModelSim(HWModel(F, G, PolynomialH((0.0, 1.0))), dt, inputs)
+        out = []
+        for i in range(len(inputs)):
+            Phi = self._basis(simw.w[i] if eff is None else eff.pre(simw, own, i))
+            if eff is not None and eff.post_linear and type(eff).post is not effect_models.Effect.post:
+                Phi = np.column_stack([eff.post(Phi[:, k], own, dt) for k in range(Phi.shape[1])])
+            x = Phi @ c
+            out.append(x if eff is None or eff.post_linear else eff.post(x, own, dt))
+        return out
 
     def model_dict(self, m) -> dict:
         """F and G for the model parameters ``m``, as in the summary's ``model``."""

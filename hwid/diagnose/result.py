@@ -13,7 +13,11 @@ class DiagnosisResult:
     RMS from the repeats; ``gap_model_refit``: the gap with h (and F, G) re-estimated; ``where``: per
     experiment, region, frequency, trend and repeatability; ``candidates``: every catalogue effect
     fitted and scored, best first; ``test``, ``noise``, ``model``, ``design``, ``cost``: how the
-    verdict was reached and what it cost."""
+    verdict was reached and what it cost; ``indistinguishable``: groups of effects that fit the
+    validation data equally well within the noise (``verdict.indistinguishable_from`` lists the
+    verdict's fellows); ``next_experiment``: for a recorded plant, the input that would separate the
+    leading group on the live rig; ``data``: for a recorded plant, how the records were split and
+    where the noise floor came from."""
 
     verdict: dict
     gap_before: float
@@ -29,10 +33,15 @@ class DiagnosisResult:
     design: dict
     cost: dict
     residual_structure: list
+    indistinguishable: list = ()
+    next_experiment: dict | None = None
+    data: dict | None = None
 
     def to_dict(self) -> dict:
         return {"verdict": self.verdict, "gap_before": self.gap_before, "gap_after": self.gap_after,
                 "noise_floor": self.noise_floor, "gap_model_refit": self.gap_model_refit,
                 "model_refit": self.model_refit, "where": self.where, "candidates": self.candidates,
                 "test": self.test, "noise": self.noise, "model": self.model, "design": self.design,
-                "cost": self.cost, "residual_structure": self.residual_structure}
+                "cost": self.cost, "residual_structure": self.residual_structure,
+                "indistinguishable": list(self.indistinguishable), "next_experiment": self.next_experiment,
+                **({"data": self.data} if self.data is not None else {})}

@@ -16,7 +16,7 @@ from hwid.diagnose.baseline import has_outside_modes
 from hwid.diagnose.effects import BLOCK, CATALOGUE, ModelSim, Scale, catalogue
 from hwid.diagnose.result import DiagnosisResult
 from hwid.diagnose.sim_side import load_model
-from hwid.diagnose.verdict import Candidate, alternative_baseline, refloor
+from hwid.diagnose.verdict import Candidate, alternative_baseline, indistinguishable, refloor
 from hwid.diagnose.verdict import verdict as decide_verdict
 from hwid.plant import make_plant
 from hwid.results import write_diagnosis, write_json
@@ -67,6 +67,9 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
     effects : sequence of str, optional
         Catalogue subset to try (default: all).
     """
+    if cfg.plant.kind == "recorded":
+        from hwid.diagnose.logs import diagnose_recorded
+        return diagnose_recorded(cfg, out_dir, model=model, json_path=json_path, echo=echo, effects=effects)
     t_start = time.perf_counter()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -79,8 +82,26 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
 
     val = run_validation(cfg, plant, sim_model, origin, identified, echo)
     calls_all = plant.calls
-    t0 = time.perf_counter()
     floor, pairs = noise_floor(val)
+    additive = gap.drift_is_additive(pairs, [0.5 * (np.asarray(a, float) + np.asarray(b, float)) for a, b, _ in pairs],
+                                     max(int(round(val.design.settle_s / (2 * val.design.dt))), 5), floor.sigma)
+    cost = {"plant_calls_identification": calls_identified - calls_start,
+            "plant_calls_validation": calls_all - calls_identified,
+            "plant_calls_reused": plant.reused,
+            "rig_seconds_validation": val.rig_seconds,
+            "rig_seconds_identification": _identification_rig_seconds(cfg, origin),
+            "seconds_model": seconds_model, "seconds_rig_validation": val.seconds_rig}
+    return conclude(cfg, out, json_path, val, floor, additive, sim_model, origin, effects, cost, t_start, echo)
+
+
+def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, sim_model, origin: dict, effects,
+             cost: dict, t_start: float, echo, extra=None) -> dict:
+    """From the experiments on the plant and their noise floor to the written result: the gap test,
+    every effect fitted and scored, the verdict and where the gap lies; ``extra(fitter, cands,
+    verdict, summary)`` adds what a caller knows beyond that (a recorded plant's data split and next
+    experiment). Writes ``diagnosis.h5`` and the JSON; returns the summary."""
+    identified = origin.get("source") == "identified"
+    t0 = time.perf_counter()
     res_before = [y - x for y, x in zip(val.y_val, val.sim_val.x)]
     gap_before = gap.gap(res_before, val.m_val)
     n_val = int(sum(m.sum() for m in val.m_val))
@@ -98,8 +119,6 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
     test = gap.gap_test(gap_ref, n_val, floor, min_ratio=ID_MIN_RATIO if identified else 1.1)
     _echo_baseline(fitter, gap_before, gap_ref, floor, test, echo)
     cands, gap_ref, test = fit_effects(fitter, sim_model, val, floor, gap_ref, test, n_val, identified, effects, echo)
-    additive = gap.drift_is_additive(pairs, [0.5 * (np.asarray(a, float) + np.asarray(b, float)) for a, b, _ in pairs],
-                                     max(int(round(val.design.settle_s / (2 * val.design.dt))), 5), floor.sigma)
     drift_ok = bool(floor.slow_z > 10 and additive["additive"])
     if not drift_ok:    # drift listed last: the plant repeats itself, or what changes is not additive
         cands = [c for c in cands if c.effect != "drift"] + [c for c in cands if c.effect == "drift"]
@@ -109,23 +128,21 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
         if by_effect is not None and by_effect["significant"]:
             test = dataclasses.replace(test, significant=True)
     verdict = decide_verdict(cands, test.significant, drift_ok)
-    seconds_analysis = time.perf_counter() - t0
-
+    groups = indistinguishable(cands, val.y_val, val.m_val, floor.sigma, floor.kappa, drift_ok) \
+        if test.significant else []
+    cost = {**cost, "seconds_analysis": time.perf_counter() - t0}
     result = _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, test, additive, drift_ok,
-                     fitter, id_err, by_effect, sim_model, origin,
-                     {"plant_calls_identification": calls_identified - calls_start,
-                      "plant_calls_validation": calls_all - calls_identified,
-                      "plant_calls_reused": plant.reused,
-                      "rig_seconds_validation": val.rig_seconds,
-                      "rig_seconds_identification": _identification_rig_seconds(cfg, origin),
-                      "seconds_model": seconds_model, "seconds_rig_validation": val.seconds_rig,
-                      "seconds_analysis": seconds_analysis})
+                     fitter, id_err, by_effect, sim_model, origin, cost, groups)
     summary = result.to_dict()
+    if extra is not None:
+        extra(fitter, cands, verdict, groups, summary)
     summary["cost"]["seconds_total"] = time.perf_counter() - t_start
     _write(out / "diagnosis.h5", cfg, summary, val, result_after(verdict, val, res_before))
     write_json(Path(json_path) if json_path else out / "diagnosis.json", summary)
     verdict_name, explained = summary["verdict"]["effect"], summary["verdict"]["explained_fraction"]
-    echo(f"verdict: {verdict_name} (block {summary['verdict']['block']}, explained {explained:.2f}); "
+    alike = summary["verdict"].get("indistinguishable_from") or []
+    echo(f"verdict: {verdict_name}{' (indistinguishable from ' + ', '.join(alike) + ')' if alike else ''} "
+         f"(block {summary['verdict']['block']}, explained {explained:.2f}); "
          f"gap {summary['gap_before']:.4g} -> {summary['gap_after']:.4g}, noise floor {floor.sigma:.4g}")
     return summary
 
@@ -270,9 +287,11 @@ def result_after(verdict, val: Validation, res_before) -> list:
 # ----------------------------------------------------------------------------------- the result
 
 def _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, test, additive, drift_ok, fitter,
-            id_err, by_effect, sim_model, origin, cost) -> DiagnosisResult:
+            id_err, by_effect, sim_model, origin, cost, groups=()) -> DiagnosisResult:
+    alike: list = []
     if isinstance(verdict, Candidate):
         name, explained, gap_after = verdict.effect, verdict.explained_fraction, verdict.gap_after
+        alike = next(([e for e in g["effects"] if e != name] for g in groups if name in g["effects"]), [])
     else:
         name, explained, gap_after = verdict, 0.0, gap_before
     res_after = result_after(verdict, val, res_before)
@@ -295,7 +314,7 @@ def _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, te
     design = val.design
     return DiagnosisResult(
         verdict={"effect": name, "block": where_block(name, cands, floor, regions_before, drift_ok),
-                 "explained_fraction": float(explained)},
+                 "explained_fraction": float(explained), "indistinguishable_from": alike},
         gap_before=float(gap_before), gap_after=float(gap_after), noise_floor=float(floor.sigma),
         gap_model_refit=float(gap_ref),
         model_refit=({**fitter.model_dict(fitter.g_p),
@@ -311,7 +330,8 @@ def _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, te
         design={"settle_s": design.settle_s, "omega_c": design.omega_c, "u_range": [design.u_lo, design.u_hi],
                 "amplitude": design.amplitude, "experiments": [e.name for e in val.exps]},
         cost=dict(cost),
-        residual_structure=_remainder(val, val_exps) if name == "unexplained" else [])
+        residual_structure=_remainder(val, val_exps) if name == "unexplained" else [],
+        indistinguishable=list(groups))
 
 
 def _remainder(val: Validation, val_exps) -> list[dict]:

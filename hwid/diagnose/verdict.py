@@ -25,6 +25,7 @@ class Candidate:
     predictions: list = field(default_factory=list, repr=False)   # validation model outputs
     model: dict | None = None      # F and G re-estimated with the effect (identified models)
     at_bound: bool = False         # pressed against a bound that defines the effect
+    theta: np.ndarray | None = field(default=None, repr=False)   # the fit's parameters (effect's, then F's and G's)
 
     def to_dict(self) -> dict:
         d = {"effect": self.effect, "params": self.params, "gap_after": self.gap_after,
@@ -132,3 +133,52 @@ def verdict(cands: list[Candidate], significant: bool, drift_plausible: bool,
             return c
         break
     return "unexplained"
+
+
+#: Two candidates are told apart when the paired test of their squared errors on the validation
+#: data (:func:`paired_z`) exceeds this many standard deviations.
+SEPARATE_Z = 3.0
+
+
+def paired_z(a: Candidate, b: Candidate, y_val, m_val, sigma: float, kappa: float) -> float:
+    """How many standard deviations apart the two candidates' mean-square errors on the validation
+    data are: ``mean(e_a^2 - e_b^2)`` against its standard deviation under the hypothesis that both
+    fit equally well, ``2 sigma rms(p_a - p_b) sqrt(kappa / n)`` (a Diebold-Mariano test with the
+    noise's correlation time ``kappa``). Two candidates whose predictions differ by less than the
+    noise can show over these records get a small ``z`` whatever their gaps."""
+    num, diff2, n = 0.0, 0.0, 0
+    for y, pa, pb, m in zip(y_val, a.predictions, b.predictions, m_val):
+        m = np.asarray(m, bool)
+        ea, eb = (np.asarray(y) - pa)[m], (np.asarray(y) - pb)[m]
+        num += float(ea @ ea - eb @ eb)
+        d = (np.asarray(pa) - pb)[m]
+        diff2 += float(d @ d)
+        n += int(m.sum())
+    if n == 0:
+        return 0.0
+    spread = 2.0 * sigma * np.sqrt(diff2 / n) * np.sqrt(max(kappa, 1.0) / n)
+    return float(abs(num / n) / spread) if spread > 0 else 0.0
+
+
+def indistinguishable(cands: list[Candidate], y_val, m_val, sigma: float, kappa: float, drift_plausible: bool,
+                      threshold: float = 0.5) -> list[dict]:
+    """Groups of catalogue effects that fit these records equally well within the noise.
+
+    Among the candidates that could be a verdict (explain at least ``threshold`` of the excess and
+    pay for their parameters; ``drift`` only when plausible), in ranked order: each group is the best
+    remaining one and every other whose squared errors on the validation data are not
+    :data:`SEPARATE_Z` standard deviations apart from it (:func:`paired_z`). Only groups of two or
+    more are returned, each as ``{"effects", "gap_after", "z"}`` (``z`` against the group's first)."""
+    able = [c for c in cands if (c.effect != "drift" or drift_plausible)
+            and c.explained_fraction >= threshold and c.score > 0 and c.predictions]
+    groups = []
+    while able:
+        head, rest = able[0], able[1:]
+        zs = {c.effect: paired_z(head, c, y_val, m_val, sigma, kappa) for c in rest}
+        members = [c for c in rest if zs[c.effect] < SEPARATE_Z]
+        if members:
+            groups.append({"effects": [head.effect] + [c.effect for c in members],
+                           "gap_after": {c.effect: float(c.gap_after) for c in [head] + members},
+                           "z": {c.effect: zs[c.effect] for c in members}})
+        able = [c for c in rest if c not in members]
+    return groups

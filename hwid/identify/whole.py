@@ -235,11 +235,17 @@ class WholeModelFit:
         Also fit a pure delay of G.
     types : sequence of str
         Input nonlinearity types tried (``"backlash"``, ``"backlash_inverse"``).
+    staged : bool
+        Without a start: choose the type and G structure at degree 3 of h_bar first, then only
+        that pair's degrees (about a quarter of the fits of the full search, which tries every
+        type, structure and degree).
     """
 
     def __init__(self, max_degree: int = 5, structures: Sequence[Structure] | None = None, delay: bool = False,
-                 types: Sequence[str] = ("backlash", "backlash_inverse"), max_nfev: int = 200):
+                 types: Sequence[str] = ("backlash", "backlash_inverse"), max_nfev: int = 200,
+                 staged: bool = False):
         self.max_degree = max_degree
+        self.staged = staged
         self.structures = structures
         self.delay = delay
         self.types = types
@@ -274,38 +280,55 @@ class WholeModelFit:
         span = max(r.u.size * r.dt for r in records)
         dt = min(r.dt for r in records)
         width = float(np.ptp(np.concatenate([r.u for r in records]))) or 1.0
-        table, best, solutions = [], None, {}
-        for kind in types:
-            for structure in structures:
-                first = _best_states(_Problem(records, kind, structure, max(degrees), self.delay),
-                                     self._start(records, kind, structure, start))
-                theta0 = None
-                for degree in degrees:
-                    prob = _Problem(records, kind, structure, degree, self.delay)
-                    lo, hi = prob.bounds(width, span, dt)
-                    # from the start and from the fit one degree lower: the cost is only piecewise
-                    # smooth in the borders (a sample switches between held and moving gear), and
-                    # either path alone can stop in a shallow local minimum
-                    sol = None
-                    for t0 in (first, theta0):
-                        if t0 is None:
-                            continue
-                        trial = optimize.least_squares(prob.residual, np.clip(t0, lo + 1e-9, hi - 1e-9),
-                                                       bounds=(lo, hi), method="trf", x_scale=1.0,
-                                                       max_nfev=self.max_nfev)
-                        if sol is None or trial.cost < sol.cost:
-                            sol = trial
-                    rss = float(sol.fun @ sol.fun)
-                    n, k = prob.y.size, prob.n_outer + degree
-                    # BIC's penalty on F, G and the initial states, AIC's on h_bar's coefficients
-                    # (the module docstring says why)
-                    aic = n * np.log(rss / n) + (k - degree) * np.log(n) + 2 * degree
-                    table.append({"type": kind, "structure": str(structure), "degree": degree, "rss": rss,
-                                  "parameters": k, "aic": float(aic)})
-                    solutions[kind, structure, degree] = (prob, sol.x)
-                    if best is None or aic < best[0]:
-                        best = (aic, prob, sol.x)
-                    theta0 = sol.x
+        table, solutions = [], {}
+
+        def path(kind, structure, degs):
+            """Fits of h_bar's degrees ``degs`` in order, each from the start and from the one before."""
+            first = _best_states(_Problem(records, kind, structure, max(degs), self.delay),
+                                 self._start(records, kind, structure, start))
+            theta0, rows = None, []
+            for degree in degs:
+                prob = _Problem(records, kind, structure, degree, self.delay)
+                lo, hi = prob.bounds(width, span, dt)
+                # from the start and from the fit one degree lower: the cost is only piecewise
+                # smooth in the borders (a sample switches between held and moving gear), and
+                # either path alone can stop in a shallow local minimum
+                sol = None
+                for t0 in (first, theta0):
+                    if t0 is None:
+                        continue
+                    trial = optimize.least_squares(prob.residual, np.clip(t0, lo + 1e-9, hi - 1e-9),
+                                                   bounds=(lo, hi), method="trf", x_scale=1.0,
+                                                   max_nfev=self.max_nfev)
+                    if sol is None or trial.cost < sol.cost:
+                        sol = trial
+                rss = float(sol.fun @ sol.fun)
+                n, k = prob.y.size, prob.n_outer + degree
+                # BIC's penalty on F, G and the initial states, AIC's on h_bar's coefficients
+                # (the module docstring says why)
+                aic = n * np.log(rss / n) + (k - degree) * np.log(n) + 2 * degree
+                row = {"type": kind, "structure": str(structure), "degree": degree, "rss": rss,
+                       "parameters": k, "aic": float(aic)}
+                if (kind, structure, degree) not in solutions or aic < solutions[kind, structure, degree][2]:
+                    solutions[kind, structure, degree] = (prob, sol.x, float(aic))
+                rows.append(row)
+                theta0 = sol.x
+            table.extend(rows)
+            return rows
+
+        pairs = [(kind, structure) for kind in types for structure in structures]
+        if self.staged and start is None and len(pairs) > 1:
+            # type and G structure at one degree of h_bar, then every degree for the best of them
+            mid = min(3, max(degrees))
+            scored = [(path(kind, structure, [mid])[0]["aic"], kind, structure) for kind, structure in pairs]
+            pairs = [min(scored, key=lambda x: x[0])[1:]]
+            # the winner's row at that degree is fitted again on its degree path below
+            table[:] = [r for r in table if (r["type"], r["structure"]) != (pairs[0][0], str(pairs[0][1]))]
+        for kind, structure in pairs:
+            path(kind, structure, list(degrees))
+        key = min(solutions, key=lambda k: solutions[k][2])
+        best = (solutions[key][2], solutions[key][0], solutions[key][1])
+        solutions = {k: v[:2] for k, v in solutions.items()}
         _, prob, theta = best
         self.problem_, self.theta_ = prob, theta
         self.result_ = self._result(prob, theta, table, solutions.get((prob.type, prob.structure, prob.degree + 1)))

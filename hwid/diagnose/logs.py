@@ -1,0 +1,224 @@
+"""``hwid diagnose`` on a recorded plant: the diagnosis from logs alone.
+
+No new experiment can be run, so the diagnosis works with what the records hold:
+
+1. **Split** into fit and validation parts: by experiment where the records hold several (every
+   other usable one to validation, in recorded order), by interleaved time blocks where they hold
+   one (blocks of at least four settling times, odd ones to validation). The samples of a record
+   before its state is known are scored nowhere: until the input has spanned the model's play (the
+   gear's state at the start is unknown) and then 1.5 settling times of G (so has G's).
+2. **Model**: ``--model``, or the whole-model output-error fit (:mod:`hwid.identify.whole`, each
+   record's initial gear and G state estimated) on the fit parts alone, written to ``whole.h5``.
+3. **Noise floor** (:mod:`hwid.diagnose.gap`): from repeated experiments (identical inputs) where
+   the records hold them; else from the settled parts of held inputs; else from the high-frequency
+   part of the model's residual; never below the output's resolution ``q / sqrt(12)``. Which one is
+   said in the JSON (``data.noise_source``).
+4. The effects fitted and ranked as for a live rig (:func:`hwid.diagnose.run.conclude`), with the
+   groups the validation data cannot tell apart (``indistinguishable``) and, for the leading group,
+   the experiment on the live rig that would (:mod:`hwid.diagnose.next_experiment`).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from hwid import HwidError
+from hwid.diagnose import experiments, gap
+from hwid.diagnose.effects import ModelSim, catalogue
+from hwid.diagnose.next_experiment import propose
+from hwid.diagnose.run import Validation, _scale, conclude
+from hwid.diagnose.sim_side import load_model
+from hwid.recorded import level_segments, load_records
+
+#: Fewest scored samples a record needs to take part in the split.
+MIN_SCORED = 50
+
+
+def known_from(u: np.ndarray, F, settle_samples: int) -> int:
+    """First sample at which the model's state no longer depends on the record's unknown start:
+    the input has spanned F's play (the gear has met a border whatever its start) and G has then
+    had ``settle_samples`` to forget its own start. ``u.size`` if the input never spans the play."""
+    width = abs(float(F.d_plus - F.d_minus)) * (1.0 if F.type == "backlash" else 1.0 / max(F.slope_down, 1e-9))
+    u = np.asarray(u, float)
+    if u.size == 0:
+        return 0
+    spanned = np.flatnonzero(np.maximum.accumulate(u) - np.minimum.accumulate(u) > width)
+    if spanned.size == 0:
+        return int(u.size)
+    return int(min(u.size, spanned[0] + settle_samples))
+
+
+#: Blocks a single record is cut into (odd ones to validation).
+N_BLOCKS = 8
+
+
+def plan(records) -> tuple[list[tuple], str]:
+    """Which samples fit and which validate, decided before any model is known (so identifying
+    the model on the fit part never sees the validation part): ``([(record, role, samples), ...],
+    how)``. Several records: every other one to validation, in recorded order. One record: cut in
+    :data:`N_BLOCKS` equal blocks, the odd ones to validation (the record stays whole, so its
+    history carries across the blocks)."""
+    if len(records) >= 2:
+        return [(r, "fit" if k % 2 == 0 else "validation", np.ones(r.u.size, bool))
+                for k, r in enumerate(records)], "experiments"
+    r = records[0]
+    if r.u.size < N_BLOCKS * MIN_SCORED:
+        raise HwidError(f"diagnose: one record of {r.u.size} samples is too short to split into {N_BLOCKS} fit and "
+                        f"validation blocks of at least {MIN_SCORED} samples; record longer or several experiments")
+    block = (np.arange(r.u.size) * N_BLOCKS) // r.u.size
+    return [(r, "fit", block % 2 == 0), (r, "validation", block % 2 == 1)], "blocks"
+
+
+def split(parts, model, dt: float, settle_s: float, design) -> tuple[list, list]:
+    """The diagnosis's experiments from :func:`plan`'s parts, scored where the model's state is
+    known (:func:`known_from`): ``(experiments, records)``; a record split in blocks appears twice,
+    once per role, with complementary masks."""
+    settle = max(int(round(1.5 * settle_s / dt)), 1)
+    exps, recs = [], []
+    for r, role, samples in parts:
+        mask = samples.copy()
+        mask[:known_from(r.u, model.input, settle)] = False
+        if mask.sum() < MIN_SCORED:
+            continue
+        name = r.name if samples.all() else f"{r.name}:{role}"
+        e = experiments.Experiment(name, "recorded", role, np.asarray(r.u, float), mask)
+        e.region = experiments.regions(e.u, mask, design)
+        exps.append(e)
+        recs.append(r)
+    return exps, recs
+
+
+def fit_pieces(parts) -> list:
+    """The records the model is identified from: the fit records, or a split record's fit blocks
+    as records of their own."""
+    out = []
+    for r, role, samples in parts:
+        if role != "fit":
+            continue
+        if samples.all():
+            out.append(r)
+            continue
+        idx = np.flatnonzero(np.diff(np.concatenate([[0], samples.astype(int), [0]])))
+        for k, (a, b) in enumerate(zip(idx[::2], idx[1::2])):
+            out.append(replace(r, name=f"{r.name}:fit{k}", u=r.u[a:b], y=r.y[a:b], attrs=dict(r.attrs)))
+    return out
+
+
+def identify_from_logs(cfg, pieces, out: Path, echo) -> tuple:
+    """The whole-model fit on the fit parts (``whole.h5``); the model and its origin."""
+    from hwid.identify.whole import WholeModelFit
+    from hwid.results import write_whole
+    t0 = time.perf_counter()
+    estimator = WholeModelFit.from_config(cfg)
+    estimator.staged = True
+    res = estimator.fit(pieces).result_
+    write_whole(out / "whole.h5", cfg, res)
+    echo(f"identified the model from the fit records ({time.perf_counter() - t0:.1f} s): {res.type}, "
+         f"d+ = {res.d_plus:.4g}, d- = {res.d_minus:.4g}, S^d = {res.slope_down:.4g}, h degree "
+         f"{len(res.h_coefficients) - 1}, G {res.structure}, sigma {res.sigma:.4g}")
+    u = np.concatenate([p.u for p in pieces])
+    return res.model(), {"source": "identified", "fit": "whole", "records": list(pieces),
+                         "u_range": [float(u.min()), float(u.max())], "notes": list(res.warnings)}
+
+
+def floor_from_logs(exps, recs, sim_all, design) -> tuple:
+    """The noise floor, its source, and the repeat pairs ``(y, y_repeat, mask)`` (empty without
+    repeats); the floor is never below the output's resolution ``q / sqrt(12)``."""
+    width = max(int(round(2 * design.settle_s / design.dt)), 20)
+    y_scale = float(np.ptp(np.concatenate([r.y for r in recs])))
+    distinct = list({id(r): r for r in recs}.values())
+    pairs = []
+    for i, a in enumerate(distinct):
+        for b in distinct[i + 1:]:
+            if a.u.size == b.u.size and a.u.size >= MIN_SCORED and np.allclose(a.u, b.u, rtol=0, atol=1e-9):
+                mask = np.zeros(a.u.size, bool)
+                mask[max(known_from(a.u, sim_all.model.input, width // 2), 0):] = True
+                pairs.append((a.y, b.y, mask))
+    if pairs:
+        floor, source = gap.noise_floor(pairs, width, y_scale), "repeats"
+    else:
+        settle = max(int(round(design.settle_s / design.dt)), 1)
+        holds = []
+        for r in distinct:
+            for seg in level_segments(np.asarray(r.u, float)):
+                a, b = seg["start"], seg["stop"]
+                a = max(a + settle, (a + b) // 2)
+                if b - a >= 40:
+                    holds.append(np.asarray(r.y, float)[a:b])
+        if holds:
+            floor, source = gap.noise_floor_from_holds(holds, width, y_scale), "settled holds"
+        else:
+            res = [(r.y - x)[e.mask] for e, r, x in zip(exps, recs, sim_all.x)]
+            floor, source = gap.noise_floor_from_residual(res, y_scale), "residual high-frequency part"
+    quanta = [float(r.attrs.get("output_resolution", 0.0) or 0.0) for r in distinct]
+    q = max(quanta) if quanta else 0.0
+    if q > 0 and floor.sigma < q / np.sqrt(12.0):
+        floor = replace(floor, sigma=float(q / np.sqrt(12.0)))
+        source += f" (raised to the output resolution {q:.4g} / sqrt(12))"
+    return floor, source, pairs
+
+
+def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effects=None) -> dict:
+    """:func:`hwid.diagnose.diagnose` for ``plant.kind: recorded``; the same JSON, plus
+    ``indistinguishable``, ``next_experiment`` and ``data`` (split and noise source)."""
+    t_start = time.perf_counter()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    records = [r for r in load_records(cfg) if r.y is not None]
+    dt = cfg.sampling.dt
+    u_all = np.concatenate([r.u for r in records])
+    parts, how = plan(records)
+    if model is not None:
+        sim_model, origin = load_model(model, echo=echo)
+    else:
+        sim_model, origin = identify_from_logs(cfg, fit_pieces(parts), out, echo)
+    seconds_model = time.perf_counter() - t_start
+    settle_s = experiments.settling_time(sim_model)
+    design = experiments.Design(dt, float(u_all.min()), float(u_all.max()), 0.0, settle_s,
+                                experiments.bandwidth(sim_model, dt), int(cfg.seed))
+    exps, recs = split(parts, sim_model, dt, settle_s, design)
+    fit_idx = [i for i, e in enumerate(exps) if e.role == "fit"]
+    val_idx = [i for i, e in enumerate(exps) if e.role == "validation"]
+    if not val_idx or not fit_idx:
+        raise HwidError("diagnose: after the samples where the model's state is unknown (until the input has "
+                        f"spanned the play, then {1.5 * settle_s:.3g} s for G), the records leave no "
+                        f"{'validation' if fit_idx else 'fit'} part of {MIN_SCORED} samples")
+    sim_all = ModelSim(sim_model, dt, [e.u for e in exps])
+    sim_fit = ModelSim(sim_model, dt, [exps[i].u for i in fit_idx])
+    sim_val = ModelSim(sim_model, dt, [exps[i].u for i in val_idx])
+    scale = _scale(design, exps, sim_fit, sim_val, recs)
+    val = Validation(design, exps, recs, fit_idx, val_idx, sim_fit, sim_val, scale, 0.0, 0.0)
+    floor, source, pairs = floor_from_logs(exps, recs, sim_all, design)
+    echo(f"records split by {how}: fit {', '.join(exps[i].name for i in fit_idx)}; validation "
+         f"{', '.join(exps[i].name for i in val_idx)}; noise floor {floor.sigma:.4g} from the {source}")
+    if pairs:
+        additive = gap.drift_is_additive(pairs, [0.5 * (np.asarray(a, float) + np.asarray(b, float))
+                                                 for a, b, _ in pairs], max(int(round(settle_s / (2 * dt))), 5),
+                                         floor.sigma)
+    else:   # nothing tells an additive drift from a wandering gain without repeats
+        additive = {"output_share": float("nan"), "fast_share": float("nan"), "additive": True}
+    data = {"split": how, "fit": [exps[i].name for i in fit_idx], "validation": [exps[i].name for i in val_idx],
+            "scored_samples": {e.name: int(e.mask.sum()) for e in exps}, "noise_source": source,
+            "records": [{"name": r.name, "samples": int(r.u.size), "seconds": float(r.u.size * dt)} for r in records]}
+    available = catalogue(scale)
+
+    def extra(fitter, cands, verdict, groups, summary):
+        summary["data"] = data
+        lead = groups[0] if groups else None
+        name = summary["verdict"]["effect"]
+        if lead is None or name not in lead["effects"]:
+            return
+        members = [next(c for c in cands if c.effect == e) for e in lead["effects"]]
+        members = [c for c in members if c.theta is not None]
+        if len(members) >= 2:
+            summary["next_experiment"] = propose(fitter, members, available, design, floor.sigma, floor.kappa)
+            echo(f"next experiment: {summary['next_experiment']['why']}")
+
+    cost = {"plant_calls_identification": 0, "plant_calls_validation": 0, "plant_calls_reused": 0,
+            "rig_seconds_validation": 0.0, "rig_seconds_identification": 0.0, "seconds_model": seconds_model,
+            "seconds_rig_validation": 0.0}
+    return conclude(cfg, out, json_path, val, floor, additive, sim_model, origin, effects, cost, t_start, echo,
+                    extra=extra)

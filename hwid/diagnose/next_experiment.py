@@ -1,0 +1,99 @@
+"""The experiment that would separate effects a log cannot tell apart.
+
+A recorded plant runs no new experiment, so where the validation records leave several catalogue
+effects equally good (:func:`hwid.diagnose.verdict.indistinguishable`), the diagnosis proposes one
+for the live rig. Candidates are the protocols hwid runs on an external plant (``hwid simulate``
+with ``plant.kind: external``): staircases up and down (wide, beyond the logged range; fine, around
+its centre; fast, holds of half a settling time) and bare sines at a few multiples of the bandwidth.
+Each member of the group, with the parameters it was fitted with, is simulated on each candidate;
+the candidate kept is the one that needs the least rig time to separate every pair of members:
+
+``n = kappa (2 Z sigma / delta)^2`` scored samples for the paired test of the diagnosis
+(:func:`hwid.diagnose.verdict.paired_z`) to reach ``Z = 5`` when one of the two is true, ``delta``
+the RMS difference of their predictions on it and ``kappa`` the noise's correlation time; the
+protocol is run ``ceil(n / scored samples)`` times.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hwid import protocols
+
+Z_SEPARATE = 5.0
+#: Rig time beyond which the proposal says the group cannot be separated in practice (s).
+MAX_RIG_SECONDS = 4 * 3600.0
+
+
+def _staircase_fragment(lo: float, hi: float, n: int, hold: float, dt: float):
+    up = np.round(np.linspace(lo, hi, n), 6)
+    down = up[::-1]
+    runs = [protocols.staircase(up, hold, dt, "up", [up[-1], up[0]]),
+            protocols.staircase(down, hold, dt, "down", [up[0], up[-1]])]
+    inputs = [s.u for s in runs]
+    scored = [np.arange(s.u.size) >= s.starts[0] for s in runs]
+    frag = {"staircase": {"levels_up": up.tolist(), "levels_down": down.tolist(), "hold": float(hold)}}
+    return frag, inputs, scored
+
+
+def _sine_fragment(amplitude: float, omega: float, dt: float, periods: int = 4, lead: int = 2):
+    s = protocols.sine(amplitude, omega, periods, lead, dt)
+    frag = {"sine": {"amplitude": float(amplitude), "frequencies": [float(omega)], "periods": periods,
+                     "lead_in_periods": lead}}
+    return frag, [s.z], [np.arange(s.z.size) >= s.steady_start]
+
+
+def candidates(design) -> list[tuple[str, dict, list, list]]:
+    """``(name, protocols fragment, inputs, scored masks)`` of every experiment considered."""
+    d = design
+    W, c, dt, T = d.width, d.centre, d.dt, max(d.settle_s, 10 * d.dt)
+    out = [("wide staircase", *_staircase_fragment(c - 0.575 * W, c + 0.575 * W, 9, 2 * T, dt)),
+           ("fine staircase", *_staircase_fragment(c - 0.15 * W, c + 0.15 * W, 9, 2 * T, dt)),
+           ("fast staircase", *_staircase_fragment(d.u_lo, d.u_hi, 9, max(0.5 * T, 5 * dt), dt))]
+    if d.u_lo < 0.0 < d.u_hi:       # hwid's sines are centred on u = 0
+        amp = 0.9 * min(-d.u_lo, d.u_hi)
+        for k in (1.0, 3.0, 10.0):
+            omega = k * d.omega_c
+            if omega < 0.25 * np.pi / dt:
+                out.append((f"sine at {k:g}x the bandwidth", *_sine_fragment(amp, omega, dt)))
+    return out
+
+
+def propose(fitter, members, effects: dict, design, sigma: float, kappa: float) -> dict:
+    """The experiment (from :func:`candidates`) that separates ``members`` (candidates of one
+    indistinguishable group, each with its fitted ``theta``) in the least rig time."""
+    best = None
+    for name, frag, inputs, scored in candidates(design):
+        preds = [fitter.predict_on(effects[c.effect], c.theta, inputs) for c in members]
+        n_scored = int(sum(int(m.sum()) for m in scored))
+        seconds = sum(u.size for u in inputs) * design.dt
+        deltas = {}
+        for i in range(len(members)):
+            for j in range(i + 1, len(members)):
+                diff = np.concatenate([(a - b)[m] for a, b, m in zip(preds[i], preds[j], scored)])
+                deltas[f"{members[i].effect} vs {members[j].effect}"] = float(np.sqrt(np.mean(diff ** 2)))
+        worst = min(deltas.values()) if deltas else 0.0
+        need = kappa * (2 * Z_SEPARATE * sigma / worst) ** 2 if worst > 0 else math.inf
+        runs = max(1, math.ceil(need / max(n_scored, 1))) if math.isfinite(need) else None
+        rig = runs * seconds if runs is not None else math.inf
+        if best is None or rig < best["rig_seconds"]:
+            best = {"name": name, "protocols": frag, "runs": runs, "rig_seconds": rig, "seconds_per_run": seconds,
+                    "difference_rms": deltas}
+    separable = best is not None and best["rig_seconds"] <= MAX_RIG_SECONDS
+    out = {"separates": [c.effect for c in members], "experiment": best["name"],
+           "config": {"sampling": {"dt": design.dt},
+                      "plant": {"kind": "external", "callable": "your_driver_module:rig"},
+                      "protocols": best["protocols"]},
+           "runs": best["runs"], "rig_seconds": best["rig_seconds"] if separable else None,
+           "seconds_per_run": best["seconds_per_run"],
+           "separable": bool(separable),
+           "difference_rms": best["difference_rms"], "noise_floor": float(sigma),
+           "units": "the model's input units (value = scale * raw + offset of the recorded config)"}
+    worst_pair = min(best["difference_rms"], key=best["difference_rms"].get) if best["difference_rms"] else ""
+    out["why"] = (f"the {best['name']} makes the predictions of {worst_pair} differ by "
+                  f"{best['difference_rms'].get(worst_pair, 0.0):.3g} RMS against a noise floor of {sigma:.3g}; "
+                  + (f"{best['runs']} run(s) ({best['rig_seconds']:.0f} rig-seconds) reach {Z_SEPARATE:g} "
+                     "standard deviations" if separable else
+                     f"no experiment considered separates them within {MAX_RIG_SECONDS / 3600:.0f} h of rig time"))
+    return out

@@ -1,0 +1,78 @@
+"""A lab's log of a simulated rig, written as a CSV with jittered ISO timestamps in raw units, for
+the recorded-plant diagnosis tests: a staircase up and down, plain sines, steps of several sizes,
+triangles and a long hold, each part a separate run (the logger paused between them).
+
+The rig is hwid's own chain (:meth:`hwid.model.HWModel.simulate`) with an optional input-side
+effect applied to the command first; its parameters are the tests' truth."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from hwid.blocks.linear import LinearBlock
+from hwid.blocks.static import PolynomialH
+from hwid.diagnose.effects import rate_limited
+from hwid.model import HWModel, InputNonlinearity
+
+DT = 0.02
+SIGMA = 0.02
+F = {"type": "backlash", "slope_up": 1.2, "slope_down": 0.8, "d_plus": 0.4, "d_minus": -0.2}
+G = {"num": [4.0], "den": [1.0, 2.5, 4.0]}
+H = [0.0, 1.0, 0.25]
+MODEL = {"plant": {"kind": "hammerstein_wiener", "input_nonlinearity": F, "linear": G,
+                   "output_nonlinearity": {"polynomial": H}, "noise": {"std": SIGMA}}}
+
+
+def lab_parts(hold: float = 4.0, lo: float = -1.5, hi: float = 1.5) -> list[np.ndarray]:
+    """The lab run's inputs, one array per part."""
+    def held(levels):
+        return np.repeat(np.asarray(levels, float), int(round(hold / DT)))
+
+    def sine(omega, periods=4):
+        t = np.arange(int(periods * 2 * np.pi / omega / DT)) * DT
+        return 1.2 * np.sin(omega * t)
+
+    def triangle(period, n):
+        s = (np.arange(int(n * period / DT)) * DT / period) % 1.0
+        return 1.4 * (2 * np.abs(2 * s - 1) - 1)
+
+    return [held(np.r_[np.linspace(lo, hi, 8), np.linspace(hi, lo, 8)]),
+            np.concatenate([sine(w) for w in (0.7, 1.4, 2.8)]),
+            held([0, 0.4, 0, -0.4, 0, 0.8, 0, -0.8, 0, 1.4, 0, -1.4, 0]),
+            np.concatenate([triangle(5 * hold, 2), triangle(1.5 * hold, 3)]),
+            held([0.7, 0.7, 0.7])]
+
+
+def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int = 0, parts=None,
+              one_record: bool = False):
+    """Write ``NAME.csv`` and its recorded config ``NAME.yaml``; return the config path."""
+    rng = np.random.default_rng(seed)
+    m = HWModel(InputNonlinearity(F["type"], F["slope_up"], F["slope_down"], F["d_plus"], F["d_minus"]),
+                LinearBlock(tuple(G["num"]), tuple(G["den"]), 0.0), PolynomialH(tuple(H)))
+    parts = lab_parts() if parts is None else parts
+    if one_record:
+        parts = [np.concatenate(parts)]
+    frames, t0 = [], 0.0
+    for u in parts:
+        ue = u if rate is None else rate_limited(u, rate, DT)
+        y = m.simulate(ue, DT).x + SIGMA * rng.standard_normal(u.size)
+        ts = t0 + (np.arange(u.size) + rng.uniform(-0.03, 0.03, u.size)) * DT
+        frames.append(pd.DataFrame({"timestamp": pd.Timestamp("2026-03-02T10:00:00") + pd.to_timedelta(ts, "s"),
+                                    "command": u * 100 + 2048, "position": y * 500, "temperature": 31.0}))
+        t0 = ts[-1] + 10.0
+    pd.concat(frames).to_csv(tmp_path / f"{name}.csv", index=False)
+    cfg = {"name": name, "seed": 1, "sampling": {"dt": DT},
+           "plant": {"kind": "recorded", "experiments": [
+               {"file": f"{name}.csv", "time": {"column": "timestamp"},
+                "input": {"column": "command", "scale": 0.01, "offset": -20.48},
+                "output": {"column": "position", "scale": 0.002, "offset": 0.0}}]}}
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    return path
+
+
+def write_model(tmp_path):
+    path = tmp_path / "model.yaml"
+    path.write_text(yaml.safe_dump(MODEL, sort_keys=False))
+    return path

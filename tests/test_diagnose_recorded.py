@@ -1,0 +1,123 @@
+"""``hwid diagnose`` on a recorded plant (hwid/diagnose/logs.py): a lab's log of a simulated rig
+(tests/logs.py, CSV with jittered ISO timestamps in raw units) diagnosed from the CSV alone, checked
+against the rig's truth: the effect it carries, its strength, the noise floor, and no false alarm."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import logs
+from hwid import config
+from hwid.cli import main
+from hwid.diagnose import diagnose
+from hwid.diagnose.verdict import Candidate, indistinguishable, paired_z
+from hwid.results import read_diagnosis
+
+RATE = 1.5      # units/s: crosses the 3-unit range in 2 s, against G's 3 s settling time
+
+
+def _quiet(*_):
+    pass
+
+
+@pytest.fixture(scope="module")
+def rate_log(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("rate")
+    cfg = config.load(logs.write_lab(tmp, "rate", rate=RATE, seed=3))
+    s = diagnose(cfg, tmp / "out", model=logs.write_model(tmp), echo=_quiet)
+    return s, tmp
+
+
+def test_rate_limit_named_from_the_log_with_the_true_model(rate_log):
+    s, tmp = rate_log
+    assert s["verdict"]["effect"] == "rate_limit"
+    assert s["gap_after"] <= 1.15 * s["noise_floor"] < s["gap_before"] / 2
+    # the floor from the settled holds is the rig's noise: interpolating between stamps jittered by
+    # 3 % takes up to 3 % off its s.d., and the median of ~30 holds of 100 settled samples carries
+    # about 2 % sampling error
+    assert 0.9 * logs.SIGMA <= s["noise_floor"] <= 1.1 * logs.SIGMA
+    rate = next(c for c in s["candidates"] if c["effect"] == "rate_limit")["params"]["rate"]
+    assert rate == pytest.approx(RATE, rel=0.1)
+    assert s["data"]["split"] == "experiments" and s["data"]["noise_source"] == "settled holds"
+    # the long hold never spans the play: its gear state is unknown, so it is scored nowhere
+    assert s["data"]["fit"] == ["rate_part1", "rate_part3"] and s["data"]["validation"] == ["rate_part2", "rate_part4"]
+
+
+def test_json_and_h5_of_a_recorded_diagnosis(rate_log):
+    s, tmp = rate_log
+    data = json.loads((tmp / "out" / "diagnosis.json").read_text())
+    assert set(data) >= {"verdict", "gap_before", "gap_after", "noise_floor", "where", "candidates",
+                         "residual_structure", "indistinguishable", "next_experiment", "data"}
+    assert data["cost"]["plant_calls_validation"] == 0 and data["cost"]["rig_seconds_validation"] == 0.0
+    diag = read_diagnosis(tmp / "out" / "diagnosis.h5")
+    assert diag["summary"]["verdict"]["effect"] == "rate_limit"
+    assert sorted(e["role"] for e in diag["experiments"].values()) == ["fit", "fit", "validation", "validation"]
+
+
+@pytest.mark.parametrize("way", ["model", "identified"])
+def test_plain_log_is_no_false_alarm(tmp_path, way):
+    cfg = config.load(logs.write_lab(tmp_path, "plain", seed=4))
+    s = diagnose(cfg, tmp_path / "out", model=logs.write_model(tmp_path) if way == "model" else None, echo=_quiet)
+    assert s["verdict"]["effect"] == "none"
+    assert s["gap_before"] <= 1.1 * s["noise_floor"]
+    if way == "identified":     # the whole-model fit on the fit records only, written beside the diagnosis
+        assert (tmp_path / "out" / "whole.h5").exists()
+        assert s["model"]["source"] == "identified"
+
+
+def test_one_record_is_split_in_interleaved_blocks(tmp_path):
+    cfg = config.load(logs.write_lab(tmp_path, "one", rate=RATE, seed=5, one_record=True))
+    s = diagnose(cfg, tmp_path / "out", model=logs.write_model(tmp_path), echo=_quiet)
+    assert s["data"]["split"] == "blocks"
+    assert s["data"]["fit"] == ["one:fit"] and s["data"]["validation"] == ["one:validation"]
+    assert s["verdict"]["effect"] == "rate_limit" and s["gap_after"] <= 1.15 * s["noise_floor"]
+
+
+def test_a_staircase_log_names_the_group_and_the_experiment_that_separates_it(tmp_path):
+    """Staircases alone show a mild rate limit only as slower transients, which a delay and a
+    sensor lag give as well: the verdict names the group, and the next experiment separates it."""
+    parts = logs.lab_parts()
+    cfg = config.load(logs.write_lab(tmp_path, "stair", rate=2.5, seed=6, parts=[parts[0], parts[0][::-1].copy()]))
+    s = diagnose(cfg, tmp_path / "out", model=logs.write_model(tmp_path), echo=_quiet)
+    group = [s["verdict"]["effect"]] + s["verdict"]["indistinguishable_from"]
+    assert "rate_limit" in group and len(group) >= 2
+    assert s["indistinguishable"][0]["effects"][0] == s["verdict"]["effect"]
+    nxt = s["next_experiment"]
+    assert set(nxt["separates"]) == set(group) and nxt["separable"]
+    assert nxt["rig_seconds"] == pytest.approx(nxt["runs"] * nxt["seconds_per_run"])
+    # every pair differs on it by more than noise can hide in that rig time
+    n = nxt["rig_seconds"] / logs.DT
+    assert all(d * np.sqrt(n) / (2 * s["noise_floor"]) >= 5 for d in nxt["difference_rms"].values())
+    # the fragment is a config the user can run on the rig
+    fragment = dict(nxt["config"])
+    frag_cfg = config.parse({"name": "next", **fragment})
+    assert frag_cfg.plant.kind == "external"
+
+
+def test_a_log_that_never_moves_the_gear_is_one_line_and_exit_2(tmp_path, capsys):
+    parts = [np.full(2000, 0.3)]
+    path = logs.write_lab(tmp_path, "still", parts=parts)
+    with pytest.raises(SystemExit) as exc:
+        main(["diagnose", str(path), "--model", str(logs.write_model(tmp_path)), "--out", str(tmp_path / "out")])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "play" in err
+
+
+def _cand(name, preds, gap=0.1):
+    return Candidate(name, "input", {}, gap, gap, 0.9, 100.0, 1.0, {}, preds)
+
+
+def test_paired_test_groups_only_what_the_noise_hides():
+    rng = np.random.default_rng(0)
+    truth = np.sin(np.linspace(0, 20, 4000))
+    y = truth + 0.1 * rng.standard_normal(truth.size)
+    m = np.ones(truth.size, bool)
+    same = _cand("a", [truth]), _cand("b", [truth + 1e-4])
+    far = _cand("c", [truth + 0.05 * np.cos(np.linspace(0, 20, 4000))])
+    assert paired_z(*same, [y], [m], 0.1, 1.0) < 3
+    assert paired_z(same[0], far, [y], [m], 0.1, 1.0) > 5
+    groups = indistinguishable([*same, far], [y], [m], 0.1, 1.0, drift_plausible=False)
+    assert [g["effects"] for g in groups] == [["a", "b"]]
