@@ -118,37 +118,44 @@ def noise_floor(pairs, width: int, y_scale: float) -> NoiseFloor:
     return NoiseFloor(sigma, kappa, int(e.size), float(np.sqrt(p_slow)), slow_z, e)
 
 
-def noise_floor_from_holds(holds, width: int, y_scale: float) -> NoiseFloor:
-    """Noise floor from the settled parts of held inputs (``holds``: the output over each), for
-    records without repeats: the output is constant there but for noise and what moves slowly.
+def noise_floor_from_holds(holds, y_scale: float, repeats=()) -> NoiseFloor:
+    """Noise floor from the model's residual over the settled parts of held inputs (``holds``),
+    for records without repeated experiments: there the residual is constant but for noise and
+    what the model misses slowly.
 
-    Each hold less its mean and its zero-phase moving average over ``width`` samples is a sample of
-    the fast noise (variance restored by ``M/(M-1)``); ``sigma`` is the median of the holds'
-    standard deviations (a hold that still rings does not set the floor of the others). The slow
-    part is the holds' block means of ``width`` samples against ``sigma^2 kappa / width``: large
-    ``slow_z`` means the output wanders at a constant input (a drift)."""
-    parts, bm, dof = [], [], 0
-    for y in holds:
-        d = np.asarray(y, float) - float(np.mean(y))
+    Each hold's residual less its mean and its zero-phase moving average over half the hold is a
+    sample of the fast noise (variance restored by ``M/(M-1)``); ``sigma`` is the median of the
+    holds' standard deviations (a hold that still rings does not set the floor of the others).
+
+    ``repeats`` are groups of holds at the same input with the same model output (the model puts
+    the plant in the same state there): their residual means differ by noise alone for a plant
+    that repeats itself, ``sigma^2 kappa / n`` each. ``slow_z`` is the z-score of their chi-square
+    over its degrees of freedom, ``slow_rms`` the RMS of the means about their groups' means."""
+    parts = []
+    for r in holds:
+        d = np.asarray(r, float) - float(np.mean(r))
         if d.size < 20:
             continue
-        m = int(min(max(width, 20), d.size))
+        m = max(20, d.size // 2)
         parts.append((d - smooth(d, m)) * np.sqrt(m / max(m - 1, 1)))
-        nb = d.size // m
-        if nb >= 2:
-            blocks = d[d.size - nb * m:].reshape(nb, m).mean(axis=1)
-            bm.append(blocks - blocks.mean())
-            dof += nb - 1
     if not parts:
         return NoiseFloor(1e-6 * y_scale, 1.0, 0, 0.0, 0.0, np.zeros(0))
     e = np.concatenate(parts)
     sigma = float(max(np.median([np.std(p) for p in parts]), 1e-6 * y_scale))
     kappa = _kappa(e)
-    m = max(width, 20)
-    null = sigma ** 2 * kappa / m
-    p_slow = float(sum(float(b @ b) for b in bm) / dof) if dof else 0.0
-    slow_z = float((p_slow / null - 1) / np.sqrt(2.0 / dof)) if dof else 0.0
-    return NoiseFloor(sigma, kappa, int(e.size), float(np.sqrt(p_slow)), slow_z, e)
+    chi2, dof, sq, count = 0.0, 0, 0.0, 0
+    for group in repeats:
+        means = np.array([float(np.mean(r)) for r in group])
+        ns = np.array([np.size(r) for r in group], float)
+        w = ns / (sigma ** 2 * kappa)
+        centre = float(np.sum(w * means) / np.sum(w))
+        chi2 += float(np.sum(w * (means - centre) ** 2))
+        dof += means.size - 1
+        sq += float(np.sum((means - means.mean()) ** 2))
+        count += means.size
+    slow_z = float((chi2 - dof) / np.sqrt(2.0 * dof)) if dof else 0.0
+    slow_rms = float(np.sqrt(sq / count)) if count else 0.0
+    return NoiseFloor(sigma, kappa, int(e.size), slow_rms, slow_z, e)
 
 
 def noise_floor_from_residual(residuals, y_scale: float) -> NoiseFloor:

@@ -55,21 +55,55 @@ def known_from(u: np.ndarray, F, settle_samples: int) -> int:
 N_BLOCKS = 8
 
 
+def _kind(record) -> str:
+    """What a record holds, from :func:`hwid.recorded.level_segments`: ``levels`` (held at least
+    half the time), ``moving`` otherwise."""
+    u = np.asarray(record.u, float)
+    held = sum(seg["stop"] - seg["start"] for seg in level_segments(u))
+    return "levels" if held >= 0.5 * u.size else "moving"
+
+
+def _covers(parts, share: float = 0.05) -> bool:
+    """Whether the validation records' input reaches both ends of the fit records' (within
+    ``share`` of its range): effects that live at the extremes (a clip) must be seen by both."""
+    fit = np.concatenate([r.u for r, role, _ in parts if role == "fit"])
+    val = np.concatenate([r.u for r, role, _ in parts if role == "validation"])
+    tol = share * max(float(np.ptp(fit)), 1e-12)
+    return bool(val.min() <= fit.min() + tol and val.max() >= fit.max() - tol)
+
+
 def plan(records) -> tuple[list[tuple], str]:
     """Which samples fit and which validate, decided before any model is known (so identifying
     the model on the fit part never sees the validation part): ``([(record, role, samples), ...],
-    how)``. Several records: every other one to validation, in recorded order. One record: cut in
-    :data:`N_BLOCKS` equal blocks, the odd ones to validation (the record stays whole, so its
-    history carries across the blocks)."""
-    if len(records) >= 2:
-        return [(r, "fit" if k % 2 == 0 else "validation", np.ones(r.u.size, bool))
-                for k, r in enumerate(records)], "experiments"
-    r = records[0]
-    if r.u.size < N_BLOCKS * MIN_SCORED:
-        raise HwidError(f"diagnose: one record of {r.u.size} samples is too short to split into {N_BLOCKS} fit and "
-                        f"validation blocks of at least {MIN_SCORED} samples; record longer or several experiments")
-    block = (np.arange(r.u.size) * N_BLOCKS) // r.u.size
-    return [(r, "fit", block % 2 == 0), (r, "validation", block % 2 == 1)], "blocks"
+    how)``.
+
+    By experiment where every kind of record (held levels, or moving input) comes at least twice
+    and the validation records reach both ends of the fit records' input range: every other record
+    of each kind to validation, in recorded order. Otherwise by interleaved
+    blocks: each record cut in :data:`N_BLOCKS` equal blocks (fewer for a short one, none under
+    ``2 MIN_SCORED`` samples), the odd ones to validation, the record kept whole so its history
+    carries across the blocks. Validation by whole experiments of kinds the fit never saw would
+    be blind to what only the fit's kind excites (a rate limit shows in steps, not in slow sines)."""
+    kinds = [_kind(r) for r in records]
+    if len(records) >= 2 and all(kinds.count(k) >= 2 for k in set(kinds)):
+        seen: dict[str, int] = {}
+        out = []
+        for r, k in zip(records, kinds):
+            out.append((r, "fit" if seen.get(k, 0) % 2 == 0 else "validation", np.ones(r.u.size, bool)))
+            seen[k] = seen.get(k, 0) + 1
+        if _covers(out):
+            return out, "experiments"
+    out = []
+    for r in records:
+        n_blocks = min(N_BLOCKS, r.u.size // MIN_SCORED) // 2 * 2
+        if n_blocks < 2:
+            continue
+        block = (np.arange(r.u.size) * n_blocks) // r.u.size
+        out += [(r, "fit", block % 2 == 0), (r, "validation", block % 2 == 1)]
+    if not out:
+        raise HwidError(f"diagnose: every record is shorter than {2 * MIN_SCORED} samples: too short to split into fit "
+                        "and validation blocks; record longer")
+    return out, "blocks"
 
 
 def split(parts, model, dt: float, settle_s: float, design) -> tuple[list, list]:
@@ -141,15 +175,32 @@ def floor_from_logs(exps, recs, sim_all, design) -> tuple:
         floor, source = gap.noise_floor(pairs, width, y_scale), "repeats"
     else:
         settle = max(int(round(design.settle_s / design.dt)), 1)
-        holds = []
+        x_of = {}
+        for e, r, x in zip(exps, recs, sim_all.x):
+            known = x_of.get(id(r), (None, np.zeros(r.u.size, bool)))[1] | e.mask
+            x_of[id(r)] = (x, known)
+        holds, keyed = [], {}
+        span = max(float(np.ptp(np.concatenate([x for x, _ in x_of.values()]))), 1e-12)
         for r in distinct:
+            if id(r) not in x_of:
+                continue
+            x, known = x_of[id(r)]
             for seg in level_segments(np.asarray(r.u, float)):
                 a, b = seg["start"], seg["stop"]
                 a = max(a + settle, (a + b) // 2)
-                if b - a >= 40:
-                    holds.append(np.asarray(r.y, float)[a:b])
+                if b - a < 40 or not known[a:b].all():
+                    continue
+                res = (np.asarray(r.y, float) - x)[a:b]
+                holds.append(res)
+                # the model's settled output at the hold's end, to a thousandth of its span: the
+                # same state of the plant where the model is in the same state
+                key = (round(seg["value"], 9), round(float(x[b - 1]) / span, 3))
+                keyed.setdefault(key, []).append(res)
         if holds:
-            floor, source = gap.noise_floor_from_holds(holds, width, y_scale), "settled holds"
+            repeats = [g for g in keyed.values() if len(g) >= 2]
+            floor, source = gap.noise_floor_from_holds(holds, y_scale, repeats), "settled holds"
+            if repeats:
+                source += f" ({sum(len(g) for g in repeats)} of them repeats of {len(repeats)} level(s))"
         else:
             res = [(r.y - x)[e.mask] for e, r, x in zip(exps, recs, sim_all.x)]
             floor, source = gap.noise_floor_from_residual(res, y_scale), "residual high-frequency part"
