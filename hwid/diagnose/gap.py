@@ -118,7 +118,7 @@ def noise_floor(pairs, width: int, y_scale: float) -> NoiseFloor:
     return NoiseFloor(sigma, kappa, int(e.size), float(np.sqrt(p_slow)), slow_z, e)
 
 
-def noise_floor_from_holds(holds, y_scale: float, repeats=()) -> NoiseFloor:
+def noise_floor_from_holds(holds, y_scale: float, repeats=(), block: int = 20, still=None) -> NoiseFloor:
     """Noise floor from the model's residual over the settled parts of held inputs (``holds``),
     for records without repeated experiments: there the residual is constant but for noise and
     what the model misses slowly.
@@ -127,23 +127,49 @@ def noise_floor_from_holds(holds, y_scale: float, repeats=()) -> NoiseFloor:
     sample of the fast noise (variance restored by ``M/(M-1)``); ``sigma`` is the median of the
     holds' standard deviations (a hold that still rings does not set the floor of the others).
 
-    ``repeats`` are groups of holds at the same input with the same model output (the model puts
-    the plant in the same state there): their residual means differ by noise alone for a plant
-    that repeats itself, ``sigma^2 kappa / n`` each. ``slow_z`` is the z-score of their chi-square
-    over its degrees of freedom, ``slow_rms`` the RMS of the means about their groups' means."""
-    parts = []
+    Whether the plant repeats itself (``slow_z``, the z-score of a chi-square over its degrees of
+    freedom; ``slow_rms``, the RMS of the means it is made of about theirs):
+
+    * within each of the ``still`` residuals (default: the holds'), the means of consecutive
+      blocks of ``block`` samples: the model's residual at a constant input where the model's
+      output is still is constant for any effect that is a map from the input's history to the
+      output, and wanders for a disturbance (a drift);
+    * across ``repeats``, groups of holds at the same input with the same model output (the model
+      puts the plant in the same state there): their means differ by noise alone for a plant that
+      repeats itself.
+
+    Each mean of ``n`` samples has variance ``sigma^2 kappa / n`` under noise alone."""
+    parts, widths = [], []
     for r in holds:
         d = np.asarray(r, float) - float(np.mean(r))
         if d.size < 20:
             continue
         m = max(20, d.size // 2)
-        parts.append((d - smooth(d, m)) * np.sqrt(m / max(m - 1, 1)))
+        parts.append(d - smooth(d, m))
+        widths.append(m)
     if not parts:
         return NoiseFloor(1e-6 * y_scale, 1.0, 0, 0.0, 0.0, np.zeros(0))
+    # the noise's correlation time from the pooled lag-1 correlation (an AR(1) noise's
+    # (1 + rho) / (1 - rho)); a moving average of M samples takes kappa / M of its variance
+    num = sum(float(p[1:] @ p[:-1]) for p in parts)
+    den = sum(float(p @ p) for p in parts)
+    rho = float(np.clip(num / den, 0.0, 0.9)) if den > 0 else 0.0
+    kappa = (1.0 + rho) / (1.0 - rho)
+    parts = [p * np.sqrt(m / max(m - kappa, 1.0)) for p, m in zip(parts, widths)]
     e = np.concatenate(parts)
     sigma = float(max(np.median([np.std(p) for p in parts]), 1e-6 * y_scale))
-    kappa = _kappa(e)
     chi2, dof, sq, count = 0.0, 0, 0.0, 0
+    block = max(int(block), int(np.ceil(5 * kappa)), 2)
+    for r in (holds if still is None else still):
+        r = np.asarray(r, float)
+        nb = r.size // block
+        if nb < 2:
+            continue
+        means = r[r.size - nb * block:].reshape(nb, block).mean(axis=1)
+        chi2 += float(np.sum((means - means.mean()) ** 2)) * block / (sigma ** 2 * kappa)
+        dof += nb - 1
+        sq += float(np.sum((means - means.mean()) ** 2))
+        count += nb
     for group in repeats:
         means = np.array([float(np.mean(r)) for r in group])
         ns = np.array([np.size(r) for r in group], float)

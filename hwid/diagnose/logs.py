@@ -37,6 +37,25 @@ from hwid.recorded import level_segments, load_records
 MIN_SCORED = 50
 
 
+def step_settling_time(model, share: float = 0.02) -> float:
+    """Seconds until G's step response stays within ``share`` of its final value (s).
+
+    Unlike the slowest pole's ``4 / |Re p|`` (:func:`hwid.diagnose.experiments.settling_time`), this
+    weighs each mode by its residue: a slow pole nearly cancelled by a zero (which an output-error
+    fit may place to absorb an offset between records) moves the step by less than ``share`` and
+    does not make every record's start unusable."""
+    from scipy import signal
+    G = model.linear
+    T = experiments.settling_time(model) - float(G.delay)
+    g0 = float(G.dc_gain)
+    if not np.isfinite(T) or T <= 0 or g0 == 0:
+        return experiments.settling_time(model)
+    t = np.linspace(0.0, T, 4001)
+    _, s = signal.step((np.asarray(G.num, float), np.asarray(G.den, float)), T=t)
+    outside = np.flatnonzero(np.abs(s - g0) > share * abs(g0))
+    return float((t[outside[-1]] if outside.size else 0.0) + G.delay)
+
+
 def known_from(u: np.ndarray, F, settle_samples: int) -> int:
     """First sample at which the model's state no longer depends on the record's unknown start:
     the input has spanned F's play (the gear has met a border whatever its start) and G has then
@@ -146,16 +165,46 @@ def identify_from_logs(cfg, pieces, out: Path, echo) -> tuple:
     from hwid.identify.whole import WholeModelFit
     from hwid.results import write_whole
     t0 = time.perf_counter()
+    from hwid.identify.history import identify_recorded
+    from hwid.model import InputNonlinearity
     estimator = WholeModelFit.from_config(cfg)
     estimator.staged = True
-    res = estimator.fit(pieces).result_
+    try:    # stage 1 from the fit part's levels starts the borders, where they hold enough
+        hist = identify_recorded(cfg, pieces)
+        borders = InputNonlinearity(hist.type, 1.0, hist.slope_down, hist.d_plus, hist.d_minus)
+        echo(f"stage 1 from the fit part's levels: {hist.type}, d+ = {hist.d_plus:.4g}, d- = {hist.d_minus:.4g}, "
+             f"S^d = {hist.slope_down:.4g}{' (misfit)' if hist.misfit else ''}: the borders' start")
+    except HwidError:
+        borders = None
+    res = estimator.fit(pieces, borders=borders).result_
     write_whole(out / "whole.h5", cfg, res)
     echo(f"identified the model from the fit records ({time.perf_counter() - t0:.1f} s): {res.type}, "
          f"d+ = {res.d_plus:.4g}, d- = {res.d_minus:.4g}, S^d = {res.slope_down:.4g}, h degree "
          f"{len(res.h_coefficients) - 1}, G {res.structure}, sigma {res.sigma:.4g}")
     u = np.concatenate([p.u for p in pieces])
-    return res.model(), {"source": "identified", "fit": "whole", "records": list(pieces),
-                         "u_range": [float(u.min()), float(u.max())], "notes": list(res.warnings)}
+    model, notes = without_slow_pairs(res.model(), max(p.u.size * p.dt for p in pieces), echo)
+    return model, {"source": "identified", "fit": "whole", "records": list(pieces),
+                   "u_range": [float(u.min()), float(u.max())], "notes": list(res.warnings) + notes}
+
+
+def without_slow_pairs(model, longest_s: float, echo) -> tuple:
+    """The model with the pole-zero pairs of G that nearly cancel below ``2 pi / longest_s`` taken
+    out (:func:`hwid.diagnose.baseline.cancel_slow_pairs`): no record is long enough to place them,
+    and an output-error fit puts one there to absorb what an effect does to the levels; left in, its
+    creep would make every record's start unusable. The diagnosis's refit of h carries the gain."""
+    from hwid.blocks.linear import LinearBlock
+    from hwid.diagnose.baseline import cancel_slow_pairs
+    from hwid.model import HWModel
+    G = model.linear
+    num, den, pairs = cancel_slow_pairs(G.num, G.den, (2 * np.pi / longest_s, np.inf))
+    if not pairs:
+        return model, []
+    note = ("G had pole-zero pairs below what the records can place (2 pi / their longest, "
+            f"{2 * np.pi / longest_s:.3g} rad/s), taken out: " +
+            ", ".join(f"pole {p:.3g} / zero {z:.3g} rad/s" for p, z in pairs))
+    echo(note)
+    return HWModel(model.input, LinearBlock(tuple(np.asarray(num, float).tolist()),
+                                            tuple(np.asarray(den, float).tolist()), G.delay), model.output), [note]
 
 
 def floor_from_logs(exps, recs, sim_all, design) -> tuple:
@@ -179,7 +228,7 @@ def floor_from_logs(exps, recs, sim_all, design) -> tuple:
         for e, r, x in zip(exps, recs, sim_all.x):
             known = x_of.get(id(r), (None, np.zeros(r.u.size, bool)))[1] | e.mask
             x_of[id(r)] = (x, known)
-        holds, keyed = [], {}
+        holds, tails, keyed = [], [], {}
         span = max(float(np.ptp(np.concatenate([x for x, _ in x_of.values()]))), 1e-12)
         for r in distinct:
             if id(r) not in x_of:
@@ -192,13 +241,23 @@ def floor_from_logs(exps, recs, sim_all, design) -> tuple:
                     continue
                 res = (np.asarray(r.y, float) - x)[a:b]
                 holds.append(res)
+                tails.append(x[a:b] - x[b - 1])
                 # the model's settled output at the hold's end, to a thousandth of its span: the
                 # same state of the plant where the model is in the same state
                 key = (round(seg["value"], 9), round(float(x[b - 1]) / span, 3))
                 keyed.setdefault(key, []).append(res)
         if holds:
             repeats = [g for g in keyed.values() if len(g) >= 2]
-            floor, source = gap.noise_floor_from_holds(holds, y_scale, repeats), "settled holds"
+            # whether the plant wanders at a constant input, where the model is still (within a
+            # quarter of the noise of its end): what the plant does while the model still moves
+            # is the model's to explain
+            first = gap.noise_floor_from_holds(holds, y_scale)
+            still = []
+            for res, tail in zip(holds, tails):
+                moving = np.flatnonzero(np.abs(tail) > 0.25 * first.sigma)
+                still.append(res[int(moving[-1]) + 1 if moving.size else 0:])
+            floor = gap.noise_floor_from_holds(holds, y_scale, repeats, still=still)
+            source = "settled holds"
             if repeats:
                 source += f" ({sum(len(g) for g in repeats)} of them repeats of {len(repeats)} level(s))"
         else:
@@ -227,7 +286,7 @@ def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effe
     else:
         sim_model, origin = identify_from_logs(cfg, fit_pieces(parts), out, echo)
     seconds_model = time.perf_counter() - t_start
-    settle_s = experiments.settling_time(sim_model)
+    settle_s = step_settling_time(sim_model)
     design = experiments.Design(dt, float(u_all.min()), float(u_all.max()), 0.0, settle_s,
                                 experiments.bandwidth(sim_model, dt), int(cfg.seed))
     exps, recs = split(parts, sim_model, dt, settle_s, design)

@@ -259,16 +259,20 @@ class WholeModelFit:
         return cls(max_degree=whole.max_degree, structures=[s for s in STRUCTURES if s.order <= whole.max_order],
                    delay=whole.delay, types=types)
 
-    def fit(self, records, start: HWModel | None = None) -> "WholeModelFit":
+    def fit(self, records, start: HWModel | None = None, borders=None) -> "WholeModelFit":
         """Fit on ``records`` (each with ``u``, ``y``, ``dt``); ``start`` (a normalised model, e.g.
         from the two stages) starts the search, otherwise a coarse grid over the borders does.
 
         From a start, the start's type, G structure (where :data:`STRUCTURES` holds it) and the
-        degrees next to its h_bar's are tried; otherwise every type, structure and degree."""
+        degrees next to its h_bar's are tried; otherwise every type, structure and degree.
+        ``borders`` (an input nonlinearity, e.g. stage 1 from the records' levels) fixes the type
+        and starts the borders in place of the coarse grid, for every structure and degree."""
         records = [r for r in records if r.y is not None and r.u.size > 10]
         if not records:
             raise HwidError("the whole-model fit needs at least one experiment of more than 10 samples")
-        types = (start.input.type,) if start is not None else tuple(self.types)
+        self._borders = borders if start is None else None
+        types = (start.input.type,) if start is not None else \
+            ((borders.type,) if borders is not None else tuple(self.types))
         structures = list(self.structures or STRUCTURES)
         degrees = range(1, self.max_degree + 1)
         if start is not None:
@@ -344,8 +348,8 @@ class WholeModelFit:
         states = []
         for r in records:
             states += [0.0, float(np.median(r.u[: max(3, r.u.size // 50)]))]
-        if start is not None:
-            f = start.input
+        if start is not None or getattr(self, "_borders", None) is not None:
+            f = start.input if start is not None else self._borders
             return np.array([f.d_plus, np.log(f.slope_down), np.log(max(f.d_plus - f.d_minus, 1e-6)),
                              *g_p, *extra, *states], float)
         u_all = np.concatenate([r.u for r in records])
