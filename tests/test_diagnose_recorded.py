@@ -122,3 +122,10 @@ def test_paired_test_groups_only_what_the_noise_hides():
     assert paired_z(same[0], far, [y], [m], 0.1, 1.0) > 5
     groups = indistinguishable([*same, far], [y], [m], 0.1, 1.0, drift_plausible=False)
     assert [g["effects"] for g in groups] == [["a", "b"]]
+
+
+def test_report_says_how_the_log_was_used(rate_log):
+    from hwid.report.html import write_report
+    _, tmp = rate_log
+    html = write_report(tmp / "out").read_text()
+    assert "From the logs alone: split by experiments" in html and "settled holds" in html

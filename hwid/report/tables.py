@@ -10,6 +10,7 @@ import datetime as _dt
 import html as _html
 
 import numpy as np
+import yaml
 
 from hwid import __version__, paper
 from hwid.blocks.static import PolynomialH
@@ -217,6 +218,7 @@ def diagnosis_html(diagnosis: dict) -> str:
                  _num(verdict["explained_fraction"], 3), _num(summary["gap_before"]), _num(summary["gap_after"]),
                  _num(summary["noise_floor"]), _html.escape(str(where["region"])), _html.escape(str(where["trend"]))])]
     out = [f"<table id='diagnosis'>{''.join(rows)}</table>"]
+    out += _from_logs_html(summary)
     if summary["model"]["source"] == "identified":
         out.append(f"<p>Model identified from the same plant; with h re-estimated on the diagnosis's fit "
                    f"experiments its gap is {_num(summary['gap_model_refit'])}.</p>")
@@ -235,6 +237,26 @@ def diagnosis_html(diagnosis: dict) -> str:
                                    _html.escape(params)]))
     out.append(f"<table id='candidates'>{''.join(candidate_rows)}</table>")
     return "".join(out)
+
+
+def _from_logs_html(summary: dict) -> list[str]:
+    """What a diagnosis from logs adds: the split and the noise source, the effects the records
+    cannot tell apart, and the experiment that would."""
+    out = []
+    data = summary.get("data")
+    if data:
+        out.append(f"<p id='diagnosis-data'>From the logs alone: split by {_html.escape(data['split'])} (fit "
+                   f"{_html.escape(', '.join(data['fit']))}; validation {_html.escape(', '.join(data['validation']))}); "
+                   f"noise floor from the {_html.escape(data['noise_source'])}.</p>")
+    for group in summary.get("indistinguishable") or []:
+        out.append("<p class='indistinguishable'>Indistinguishable on these records: "
+                   + ", ".join(f"{_html.escape(e)} (gap after {_num(g)})" for e, g in group["gap_after"].items())
+                   + ".</p>")
+    nxt = summary.get("next_experiment")
+    if nxt:
+        fragment = _html.escape(yaml.safe_dump(nxt["config"], sort_keys=False))
+        out.append(f"<p id='next-experiment'>Next experiment: {_html.escape(nxt['why'])}.</p><pre>{fragment}</pre>")
+    return out
 
 
 def compare_html(compare: dict) -> str:
