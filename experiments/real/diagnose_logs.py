@@ -34,7 +34,7 @@ def plain_backlash(cfg, path: Path) -> Path:
                        "input_nonlinearity": {"type": "backlash", "slope_up": 1.0, "slope_down": 1.0,
                                               "d_plus": 0.5 * play, "d_minus": -0.5 * play},
                        "linear": {"num": [1.0], "den": [0.01, 1.0]},
-                       "output_nonlinearity": {"polynomial": [float(np.mean(y)), gain]}}}
+                       "output_nonlinearity": {"polynomial": [0.0, gain]}}}
     path.write_text(yaml.safe_dump(model, sort_keys=False))
     return path
 
