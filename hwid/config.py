@@ -144,11 +144,16 @@ class RecordedExperimentCfg(_Strict):
     start: Optional[NonNeg] = None
     stop: Optional[Pos] = None
     role: Literal["auto", "staircase", "sine", "validation", "other"] = "auto"
+    # stretches to leave out (disturbed samples), [start, stop] seconds from the record's first sample
+    exclude: list[Annotated[list[NonNeg], Field(min_length=2, max_length=2)]] = Field(default_factory=list)
 
     @model_validator(mode="after")
     def _window(self):
         if self.start is not None and self.stop is not None and self.start >= self.stop:
             raise ValueError(f"start ({self.start}) must be before stop ({self.stop})")
+        for a, b in self.exclude:
+            if a >= b:
+                raise ValueError(f"exclude: each stretch must start before it stops, not [{a}, {b}]")
         return self
 
 

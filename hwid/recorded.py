@@ -215,9 +215,19 @@ def load_experiment(exp, index: int, base: Path, dt: float, resolution: float | 
         raise RecordError(f"{where}: fewer than {MIN_SAMPLES} samples between start and stop")
     u, y, t, y_raw = u[keep], y[keep], t[keep], y_raw[keep]
     quantum, quantum_source = _resolution(y_raw, exp.output.scale, resolution)
+    # the excluded stretches out, the record always cut where one was (never bridged)
+    out = np.zeros(t.size, bool)
+    for a, b in exp.exclude:
+        out |= (t >= a) & (t <= b)
+    cut_after = np.flatnonzero(out[1:] & ~out[:-1])          # last kept sample before a stretch
+    forced = np.searchsorted(np.flatnonzero(~out), cut_after, side="right")
+    u, y, t = u[~out], y[~out], t[~out]
     decisions = {"rows_read": int(n_rows), "rows_dropped_leading": first,
-                 "rows_dropped_trailing": int(n_rows - last - 1), "nan_interpolated": 0, "dropped_short_pieces": 0}
-    pieces = _split(t, u, y, dt, decisions)
+                 "rows_dropped_trailing": int(n_rows - last - 1), "nan_interpolated": 0, "dropped_short_pieces": 0,
+                 "rows_excluded": int(out.sum())}
+    if t.size < MIN_SAMPLES:
+        raise RecordError(f"{where}: fewer than {MIN_SAMPLES} samples are left outside the excluded stretches")
+    pieces = _split(t, u, y, dt, decisions, forced)
     if not pieces:
         raise RecordError(f"{where}: no stretch of at least {MIN_SAMPLES} samples without a gap "
                           f"longer than {GAP_DT:g} dt or a NaN run longer than {MAX_NAN_RUN}")
@@ -229,6 +239,7 @@ def load_experiment(exp, index: int, base: Path, dt: float, resolution: float | 
                   "input_scale": exp.input.scale, "input_offset": exp.input.offset,
                   "output_scale": exp.output.scale, "output_offset": exp.output.offset,
                   "start": -1.0 if exp.start is None else exp.start, "stop": -1.0 if exp.stop is None else exp.stop,
+                  "exclude": json.dumps([list(w) for w in exp.exclude]),
                   "resampling": "input zero-order hold, output linear interpolation, onto t0 + k dt",
                   "jitter_median_s": float(np.median(np.abs(step - dt))) if step.size else 0.0,
                   "jitter_max_s": float(np.max(np.abs(step - dt))) if step.size else 0.0,
@@ -291,10 +302,12 @@ def _resolution(y_raw: np.ndarray, scale: float, given: float | None) -> tuple[f
     return None, "none"
 
 
-def _split(t, u, y, dt: float, decisions: dict) -> list[tuple]:
+def _split(t, u, y, dt: float, decisions: dict, forced=()) -> list[tuple]:
     """Pieces without a gap longer than :data:`GAP_DT` ``dt`` or a NaN run longer than
-    :data:`MAX_NAN_RUN`; shorter NaN runs interpolated (counted in ``decisions``)."""
-    cuts = np.flatnonzero(np.diff(t) > GAP_DT * dt) + 1
+    :data:`MAX_NAN_RUN`; shorter NaN runs interpolated (counted in ``decisions``); also cut before
+    the samples ``forced`` (where an excluded stretch was)."""
+    cuts = np.union1d(np.flatnonzero(np.diff(t) > GAP_DT * dt) + 1, np.asarray(forced, int))
+    cuts = cuts[(cuts > 0) & (cuts < t.size)]
     pieces = []
     for tk, uk, yk in zip(np.split(t, cuts), np.split(u, cuts), np.split(y, cuts)):
         missing = ~(np.isfinite(uk) & np.isfinite(yk))

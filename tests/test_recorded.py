@@ -105,6 +105,20 @@ def test_gaps_and_nan_runs_split_or_fill(tmp_path):
     assert all(np.all(np.isfinite(r.y)) and np.all(np.isfinite(r.u)) for r in recs)
 
 
+def test_excluded_stretches_are_cut_out_and_never_bridged(tmp_path):
+    t, u, y = _signals(n=300, seed=3)
+    # one stretch of 2 s and one of a single sample (shorter than a gap that would split)
+    cfg, _ = _config(tmp_path, _csv(tmp_path, t, u, y), time={"column": "timestamp"},
+                     input={"column": 1}, output={"column": 2}, exclude=[[10.0, 12.0], [20.0, 20.05]])
+    recs = load_records(cfg)
+    assert [r.name for r in recs] == ["log_part1", "log_part2", "log_part3"]
+    rel = t - t[0]
+    gone = ((rel >= 10.0) & (rel <= 12.0)) | ((rel >= 20.0) & (rel <= 20.05))
+    assert recs[0].attrs["rows_excluded"] == int(gone.sum())
+    starts = [r.attrs["piece_start_s"] for r in recs]
+    assert starts[1] > 12.0 and starts[2] > 20.05 and abs(recs[0].u.size * DT - 10.0) < 2 * DT
+
+
 def test_output_resolution_detected_and_levels_found(tmp_path):
     t, u, _ = _signals(n=200, seed=3)
     counts = np.round(np.sin(0.2 * t) * 40)          # an encoder: whole counts

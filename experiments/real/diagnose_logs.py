@@ -1,6 +1,7 @@
 """``hwid diagnose`` on the real logs in ../shared/data/real (issue 18): the banded rotary friction
 damper with the model hwid identifies from it and with the plain backlash model a user would try
-first, and the STS3215 servo log with the model hwid identifies from it. Prints what each says.
+first, and the STS3215 servo log with the model hwid identifies from it, as recorded and with the
+puller servos' pushes excluded (``exclude``). Prints what each says.
 
 Usage: ``python experiments/real/diagnose_logs.py [OUT]`` (default ``runs/real_diagnose``); the
 configs are ``configs/recorded_brfd_whole.yaml`` (the damper's 1 Hz test at 128 Hz) and
@@ -16,7 +17,9 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from hwid import HwidError  # noqa: E402
 from hwid.config import load  # noqa: E402
 from hwid.diagnose import diagnose  # noqa: E402
 from hwid.recorded import load_records  # noqa: E402
@@ -61,8 +64,40 @@ def main(out: Path) -> None:
     say("damper, model identified from it", diagnose(damper, out / "brfd_identified", echo=quiet))
     say("damper, plain backlash model", diagnose(damper, out / "brfd_backlash",
                                                  model=plain_backlash(damper, out / "brfd_backlash.yaml"), echo=quiet))
-    sts = load(ROOT / "configs" / "recorded_sts3215.yaml")
+    sts_path = ROOT / "configs" / "recorded_sts3215.yaml"
+    sts = load(sts_path)
     say("STS3215, model identified from it", diagnose(sts, out / "sts_identified", echo=quiet))
+    masked = without_pushes(sts_path, out / "sts_without_pushes.yaml")
+    records = load_records(load(masked))
+    print(f"STS3215 with the pushes excluded: {len(records)} record(s), {sum(r.u.size for r in records)} samples")
+    try:
+        say("STS3215 with the pushes excluded, model identified from it",
+            diagnose(load(masked), out / "sts_without_pushes", echo=quiet))
+    except HwidError as err:
+        print(f"STS3215 with the pushes excluded: {err}")
+
+
+def without_pushes(config: Path, path: Path, after_s: float = 1.0) -> Path:
+    """The STS3215 config with every stretch in which a puller servo is not relaxed excluded
+    (``exclude``), and ``after_s`` after it while the lever springs back."""
+    import pandas as pd
+    from sts3215 import relaxed, runs
+    data = yaml.safe_load(config.read_text())
+    exp = data["plant"]["experiments"][0]
+    csv = (config.parent / exp["file"]).resolve()
+    df = pd.read_csv(csv)
+    present = df[[exp["input"]["column"], exp["output"]["column"]]].notna().all(axis=1).to_numpy()
+    df = df[np.cumsum(present) > 0]          # the record starts at its first row with both signals
+    t = pd.to_datetime(df[exp["time"]["column"]], format="ISO8601")
+    seconds = (t - t.iloc[0]).dt.total_seconds().to_numpy()
+    pushed = ~relaxed(df)
+    exp["exclude"] = [[float(max(seconds[a] - 0.05, 0.0)), float(seconds[b - 1] + after_s)] for a, b in runs(pushed)]
+    exp["file"] = str(csv)
+    data["name"] = data["name"] + "-without-pushes"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    print(f"STS3215: {len(exp['exclude'])} pushes excluded ({int(pushed.sum())} of {pushed.size} rows, "
+          f"and {after_s:g} s after each)")
+    return path
 
 
 if __name__ == "__main__":
