@@ -143,5 +143,51 @@ def main(paths) -> None:
               f"{a['unloaded']:.2f} counts ({a['unloaded'] * DEGREES_PER_COUNT:.2f} deg) | {gap:.2f} counts | {fit} | {chi} |")
 
 
+def held_out(path: Path, out: Path, split_s: float | None = None) -> None:
+    """The whole-model fit on the log's first half (pushes included, as a user's first try would
+    be), and ``hwid compare`` of that model on the second half, which it never saw."""
+    import yaml
+
+    from hwid.compare import compare
+    from hwid.config import load
+    from hwid.identify.whole import WholeModelFit
+    from hwid.recorded import load_records
+    from hwid.results import write_whole
+    out.mkdir(parents=True, exist_ok=True)
+    base = {"name": "sts3215-held-out", "sampling": {"dt": 0.1},
+            "plant": {"kind": "recorded", "experiments": [{
+                "file": str(path), "time": {"column": "timestamp"},
+                "input": {"column": col("target pos", DUT), "offset": -HOME},
+                "output": {"column": col("pos", DUT), "offset": -HOME}}]},
+            "identification": {"whole": {"enabled": True, "max_order": 2}}}
+    whole = load_records(load(_config(base, out / "whole_log.yaml")))
+    split_s = split_s or 0.5 * whole[0].u.size * whole[0].dt
+    fit_cfg = load(_config(base, out / "first_half.yaml", stop=split_s))
+    res = WholeModelFit.from_config(fit_cfg).fit(load_records(fit_cfg)).result_
+    write_whole(out / "model" / "whole.h5", fit_cfg, res)
+    held = load(_config(base, out / "second_half.yaml", start=split_s))
+    fitted = compare(out / "model", fit_cfg, out / "compare_fit", echo=lambda *a: None)
+    result = compare(out / "model", held, out / "compare_held_out", echo=lambda *a: None)
+    print(f"\n{Path(path).name}: whole-model fit on the first {split_s:.1f} s ({res.type}, dead band "
+          f"{res.d_plus - res.d_minus:.2f} counts, G {res.structure}, h degree {len(res.h_coefficients) - 1}, "
+          f"residual sigma {res.sigma:.3g} counts)")
+    print("| part | fit % | RMS (counts) | whiteness p | input correlation p |")
+    print("|---|---|---|---|---|")
+    for name, r in (("first half (fitted)", fitted), ("second half (held out)", result)):
+        print(f"| {name} | {r.fit_percent:.1f} | {r.rms:.2f} | {r.whiteness_p:.2g} | {r.input_correlation_p:.2g} |")
+
+
+def _config(base: dict, path: Path, **window) -> Path:
+    import copy
+
+    import yaml
+    data = copy.deepcopy(base)
+    data["plant"]["experiments"][0].update(window)
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
 if __name__ == "__main__":
-    main(sys.argv[1:] or sorted(FOLDER.glob("motor_telemetry_single*.csv")))
+    logs = sys.argv[1:] or sorted(FOLDER.glob("motor_telemetry_single*.csv"))
+    main(logs)
+    held_out(Path(logs[0]), Path(__file__).resolve().parents[2] / "runs" / "sts3215_held_out")
