@@ -65,20 +65,28 @@ def simulate(config: Path = typer.Argument(..., help="Config YAML."),
 
 @app.command("identify-linear")
 def identify_linear(config: Path = typer.Argument(..., help="Config YAML."),
-                    nonlinear: Path = typer.Option(..., "--nonlinear", help="Stage 1 result DIR/nonlinear.h5."),
+                    nonlinear: Path = typer.Option(..., "--nonlinear", help="Stage 1 result DIR/nonlinear.h5 "
+                                                   "(a recorded plant: DIR/history.h5)."),
                     out: Path = typer.Option(..., "--out", help="Output directory (linear.h5 goes here)."),
                     json_out: Optional[Path] = typer.Option(None, "--json", help="Also write the result as JSON.")):
-    """Stage 2 (Section 5): sines behind the estimated pre-compensator, G(jw), a rational G(s); OUT/linear.h5."""
+    """Stage 2 (Section 5): sines behind the estimated pre-compensator, G(jw), a rational G(s); OUT/linear.h5.
+    For a recorded plant: from its steady periodic stretches, pre-compensated or not."""
     import warnings
     from hwid.config import load as load_config
     from hwid import results
     from hwid.identify import linear as linear_stage
     cfg = load_config(config)
-    nl = results.read_nonlinear(nonlinear, cfg)
     out = _out_dir(out)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", linear_stage.ExtrapolationWarning)   # listed below from the result
-        res, records = linear_stage.identify_linear(cfg, nl, journal_dir=out / "rig_journal")
+        if cfg.plant.kind == "recorded":    # the records' periodic stretches, with stage 1 from history.h5
+            from hwid.identify.periodic import identify_periodic
+            from hwid.recorded import load_records
+            hist = results.read_history(nonlinear / "history.h5" if nonlinear.is_dir() else nonlinear, cfg)
+            res, records = identify_periodic(cfg, load_records(cfg), hist)
+        else:
+            nl = results.read_nonlinear(nonlinear, cfg)
+            res, records = linear_stage.identify_linear(cfg, nl, journal_dir=out / "rig_journal")
     path = results.write_linear(out / "linear.h5", cfg, res, records)
     if json_out is not None:
         results.write_json(json_out, res.to_dict())

@@ -94,6 +94,7 @@ def _run_recorded(cfg, out: Path, report: bool, echo) -> dict:
              f"S^d = {hist.slope_down:.4g}{' (MISFIT)' if hist.misfit else ''}")
         for w in hist.warnings:
             echo(f"warning: {w}")
+        _periodic(cfg, records, hist, out, paths, times, echo)
     if cfg.identification.whole.enabled:
         _whole(cfg, records, None, out, paths, times, echo)
     if report:
@@ -101,6 +102,26 @@ def _run_recorded(cfg, out: Path, report: bool, echo) -> dict:
         paths["report"] = write_report(out)
         echo(f"report: {paths['report']}")
     return {"paths": paths, "seconds": times}
+
+
+def _periodic(cfg, records, hist, out: Path, paths: dict, times: dict, echo) -> None:
+    """Stage 2 from the records' steady periodic stretches, where they hold any (``linear.h5``)."""
+    import warnings
+    from hwid.identify.linear import ExtrapolationWarning
+    from hwid.identify.periodic import identify_periodic, periodic_pieces
+    if not periodic_pieces(records)[0]:
+        echo("stage 2 from periodic stretches: skipped (the records hold no steady periodic stretch)")
+        return
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExtrapolationWarning)     # echoed below from the result
+        lin, pieces = identify_periodic(cfg, records, hist)
+    paths["linear"] = write_linear(out / "linear.h5", cfg, lin, pieces)
+    times["stage2"] = time.perf_counter() - t0
+    echo(f"stage 2 from {len(lin.frequencies)} periodic stretch(es): G(jw) at "
+         f"{', '.join(f'{w:.4g}' for w in lin.frequencies)} rad/s ({times['stage2']:.1f} s)")
+    for w in lin.warnings:
+        echo(f"warning: {w}")
 
 
 def _whole(cfg, records, start, out: Path, paths: dict, times: dict, echo) -> None:

@@ -305,7 +305,7 @@ class LinearEstimator:
             V = None          # the distortion needs G at the harmonics: left out of this pass
         if thd > 1e-2:
             self.warnings_.append(
-                f"omega = {omega:g} rad/s: the pre-compensated input is not a pure sine (model-predicted "
+                f"omega = {omega:g} rad/s: the input after F_hat is not a pure sine (model-predicted "
                 f"distortion {100 * thd:.2g} %); " + ("its harmonics are modelled through the first-pass "
                                                      "G(s)" if V is not None else "G is biased by its harmonics"))
 
