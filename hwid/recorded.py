@@ -255,9 +255,7 @@ def load_experiment(exp, index: int, base: Path, dt: float, resolution: float | 
         segments = level_segments(u_grid) if exp.role in ("auto", "staircase") else []
         held = sum(seg["stop"] - seg["start"] for seg in segments)
         if exp.role == "sine" or (exp.role == "auto" and held < 0.5 * u_grid.size):
-            periodic = periodic_segment(u_grid, dt)
-            if periodic is not None:
-                segments.append(periodic)
+            segments += periodic_segments(u_grid, dt)
         if exp.role in ("auto", "staircase", "sine"):
             attrs["segments"] = json.dumps(segments)
         records.append(Record(name, dt, u_grid, y_grid, attrs=attrs))
@@ -413,6 +411,53 @@ def periodic_segment(u: np.ndarray, dt: float, harmonics: int = 5, share: float 
         return None
     return {"kind": "periodic", "start": int(edges[first]), "stop": int(edges[last]),
             "omega": float(2 * np.pi / (period * dt)), "periods": last - first}
+
+
+def periodic_segments(u: np.ndarray, dt: float) -> list[dict]:
+    """Every steady periodic stretch of ``u`` (:func:`periodic_segment` on each): a record may hold
+    several sines one after the other (a lab's frequency steps).
+
+    The input's upward crossings of its mean (with a hysteresis of a tenth of its amplitude, so a
+    held level or noise does not cross) mark its periods; runs of at least three periods whose
+    lengths stay within 10 % of their neighbours' are candidate stretches, each tested as one over
+    the samples from halfway to the run before to halfway to the run after. With fewer than four
+    crossings, the record as a whole."""
+    u = np.asarray(u, float)
+    s = u - float(np.mean(u))
+    amp = float(np.percentile(np.abs(s), 95)) if s.size else 0.0
+    ups, low = [], False
+    if amp > 0:
+        below = s < -0.1 * amp
+        above = s > 0.1 * amp
+        for k in np.flatnonzero(below | above):     # the samples past the hysteresis band, in order
+            if below[k]:
+                low = True
+            elif low:
+                ups.append(int(k))
+                low = False
+    out = []
+    if len(ups) >= 4:
+        periods = np.diff(ups).astype(float)
+        alike = np.abs(periods[1:] / periods[:-1] - 1.0) < 0.1
+        groups, start = [], 0
+        for i in range(1, len(periods) + 1):
+            if i == len(periods) or not alike[i - 1]:
+                if i - start >= 2:                                  # periods start .. i-1
+                    groups.append((ups[start], ups[i]))
+                start = i
+        # each run tested on the stretch from halfway to the run before to halfway to the run after
+        # (the record's ends for the first and the last): periodic_segment lays its own grid of
+        # whole periods and keeps those at full amplitude
+        for j, (a, b) in enumerate(groups):
+            lo = 0 if j == 0 else (groups[j - 1][1] + a) // 2
+            hi = u.size if j == len(groups) - 1 else (b + groups[j + 1][0]) // 2
+            seg = periodic_segment(u[lo:hi], dt)
+            if seg is not None:
+                out.append({**seg, "start": seg["start"] + lo, "stop": seg["stop"] + lo})
+    if len(ups) < 4:        # too few crossings to mark periods: the record as a whole
+        seg = periodic_segment(u, dt)
+        out = [seg] if seg is not None else []
+    return out
 
 
 def describe(records: list[Record]) -> str:

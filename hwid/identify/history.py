@@ -239,9 +239,17 @@ class HistoryFit:
         ci["h_coefficients"] = [(0.0, 0.0)] + [(float(a - z * s), float(a + z * s)) for a, s in zip(c, sd_c)]
         levels = tuple(Level(lv.record, lv.index, lv.u, lv.x, lv.se, lv.n, bool(s))
                        for lv, s in zip(prob.levels, prob.scored))
+        # (c1..cp, d_plus, slope_down, d_minus) from (d_plus, ln S^d, ln(d_plus - d_minus), states, c)
+        T = np.zeros((c.size + 3, full.size))
+        T[np.arange(c.size), prob.n_outer + np.arange(c.size)] = 1.0
+        T[c.size, 0] = 1.0
+        T[c.size + 1, 1] = e_sd
+        T[c.size + 2, 0], T[c.size + 2, 2] = 1.0, -e_gap
+        cov_out = T @ cov @ T.T
+        names = tuple(f"c{i + 1}" for i in range(c.size)) + ("d_plus", "slope_down", "d_minus")
         return HistoryResult(prob.type, float(e_sd), float(theta[0]), float(theta[0] - e_gap),
                              tuple([0.0] + [float(a) for a in c]), ci, chi2, int(dof), p, bool(misfit), levels,
-                             table, tuple(warns))
+                             table, tuple(warns), tuple(tuple(float(x) for x in row) for row in cov_out), names)
 
 
 class _Problem:

@@ -570,8 +570,13 @@ def unwrap_phase(omega, phase) -> np.ndarray:
 
 
 def estimate_response(records, sines, nonlinear, cfg=None, estimator: LinearEstimator | None = None,
-                      parametric: bool = True, precompensator: str = "auto") -> LinearResult:
-    """Estimate ``G(j omega_i)`` from sine records already measured (one per ``sines[i]``)."""
+                      parametric: bool = True, precompensator: str = "auto", passes: int = 1) -> LinearResult:
+    """Estimate ``G(j omega_i)`` from sine records already measured (one per ``sines[i]``).
+
+    ``passes``: how many times the input's distortion is modelled through a rational G fitted to
+    the previous pass (a pre-compensated input needs one; a bare sine through a backlash, whose
+    harmonics are a third of its fundamental, needs G at frequencies above the band measured, and
+    each pass refits it from better estimates)."""
     from hwid.identify.parametric import fit_rational
     est0 = estimator or (_estimator(cfg) if cfg is not None else LinearEstimator())
     lc = cfg.identification.linear if cfg is not None else None
@@ -593,20 +598,25 @@ def estimate_response(records, sines, nonlinear, cfg=None, estimator: LinearEsti
         # second pass: (a) the pre-compensated input's harmonics reach w through G(j k omega) (a
         # Backlash-Inverse plant, or a perturbed stage 1); (b) the stage 1 uncertainty is propagated.
         # Both need G at the harmonics: taken from a first-pass parametric fit.
-        g_model = None
-        try:
-            ph = unwrap_phase(w, [e.phase_ for e in ests])
-            g = np.array([e.gain_ for e in ests])
-            first = fit_rational(w, g * np.exp(-1j * ph), np.array([e.cov_ for e in ests]), gain=g, phase=ph,
-                                 max_order=max_order, fit_delay=fit_delay)
-            g_model = first.freqresp
-        except HwidError:
-            pass
+        def g_fit():
+            try:
+                ph = unwrap_phase(w, [e.phase_ for e in ests])
+                g = np.array([e.gain_ for e in ests])
+                return fit_rational(w, g * np.exp(-1j * ph), np.array([e.cov_ for e in ests]), gain=g, phase=ph,
+                                    max_order=max_order, fit_delay=fit_delay).freqresp
+            except HwidError:
+                return None
+
+        g_model = g_fit()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ExtrapolationWarning)     # the first pass has warned already
+            for k in range(max(1, int(passes))):
+                if k > 0:
+                    g_model = g_fit() or g_model
+                for e in ests:
+                    if g_model is not None and e.input_distortion_ > 0:
+                        e.refit(nonlinear, g_model)
             for e in ests:
-                if g_model is not None and e.input_distortion_ > 0:
-                    e.refit(nonlinear, g_model)
                 if has_cov and getattr(est0, "propagate_stage1", True):
                     e.add_stage1_uncertainty(nonlinear, g_model)
     gain = np.array([e.gain_ for e in ests])

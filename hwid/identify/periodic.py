@@ -13,6 +13,7 @@ input needs. The stage 1 it takes is the history fit of the same records (:mod:`
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -23,15 +24,27 @@ from hwid.model import InputNonlinearity
 
 #: Periods kept before a stretch as the gear's history (left out of the fit).
 LEAD_PERIODS = 2
+#: Passes of the distortion through a refitted G (:func:`hwid.identify.linear.estimate_response`).
+PASSES = 3
 
 
-def stage1_of(hist: HistoryResult) -> KnownNonlinear:
-    """The stage 1 stand-in of a history fit: its normalised F and h_bar, and the range of w its
-    levels visited (``G(0) = 1``: w at a settled level is F's output there)."""
+@dataclass(frozen=True)
+class HistoryStage1(KnownNonlinear):
+    """A history fit as stage 2's stage 1: its normalised F and h_bar, the range of w its levels
+    visited (``G(0) = 1``: w at a settled level is F's output there), and its covariance, which
+    stage 2 propagates (:meth:`hwid.identify.linear.LinearEstimator.add_stage1_uncertainty`)."""
+
+    cov: np.ndarray | None = None
+    param_names: tuple = ()
+
+
+def stage1_of(hist: HistoryResult) -> HistoryStage1:
     F = InputNonlinearity(hist.type, 1.0, hist.slope_down, hist.d_plus, hist.d_minus)
     us = np.array([lv.u for lv in hist.levels], float)
     vs = np.concatenate([np.atleast_1d(F.ascending(us)), np.atleast_1d(F.descending(us))])
-    return KnownNonlinear(F, tuple(hist.h_coefficients), (float(vs.min()), float(vs.max())))
+    cov = np.asarray(hist.cov, float) if len(hist.cov) else None
+    return HistoryStage1(F, tuple(hist.h_coefficients), (float(vs.min()), float(vs.max())), cov,
+                         tuple(hist.param_names))
 
 
 def periodic_pieces(records) -> tuple[list, list]:
@@ -73,4 +86,4 @@ def identify_periodic(cfg, records, hist: HistoryResult) -> tuple[LinearResult, 
                         "(role: auto or sine finds them); none was found")
     order = np.argsort([s.omega for s in sines])
     pieces, sines = [pieces[i] for i in order], [sines[i] for i in order]
-    return estimate_response(pieces, sines, stage1_of(hist), cfg, precompensator="none"), pieces
+    return estimate_response(pieces, sines, stage1_of(hist), cfg, precompensator="none", passes=PASSES), pieces

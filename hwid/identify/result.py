@@ -312,6 +312,9 @@ class HistoryResult:
     levels: tuple
     table: tuple
     warnings: tuple = field(default=())
+    # covariance of (c1..cp, d_plus, slope_down, d_minus), for stage 2's delta method
+    cov: tuple = field(default=())
+    param_names: tuple = field(default=())
 
     @property
     def dead_band(self) -> float:
@@ -324,7 +327,8 @@ class HistoryResult:
                 "chi2": self.chi2, "dof": self.dof,
                 "p_value": self.p_value, "misfit": self.misfit,
                 "levels": [vars(lv) for lv in self.levels], "selection": list(self.table),
-                "warnings": list(self.warnings)}
+                "warnings": list(self.warnings), "cov": [list(row) for row in self.cov],
+                "param_names": list(self.param_names)}
 
     @classmethod
     def from_dict(cls, d: dict) -> "HistoryResult":
@@ -333,7 +337,8 @@ class HistoryResult:
         return cls(d["type"], float(d["slope_down"]), float(d["d_plus"]), float(d["d_minus"]),
                    tuple(d["h_coefficients"]), ci, float(d["chi2"]), int(d["dof"]), float(d["p_value"]),
                    bool(d["misfit"]), tuple(Level(**lv) for lv in d["levels"]), tuple(d["selection"]),
-                   tuple(d["warnings"]))
+                   tuple(d["warnings"]), tuple(tuple(row) for row in d.get("cov", ())),
+                   tuple(d.get("param_names", ())))
 
 
 def format_history(res: HistoryResult) -> str:
