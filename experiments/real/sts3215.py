@@ -19,12 +19,14 @@ physical quantity:
   95 % interval; and on the log as recorded (pushes included), what ``hwid identify-nonlinear``
   gives on ``configs/recorded_sts3215.yaml``.
 
-Usage: ``python experiments/real/sts3215.py [CSV ...]`` (default: every log in the folder whose
-motor 5 is the device under test). Prints one table row per log.
+Usage: ``python experiments/real/sts3215.py [CSV ...]`` (default: every log in the folder). The
+roles are read from each log's targets (:func:`stands`: a puller's target takes two values, a
+device under test's three); one table row per log and motor under test.
 """
 from __future__ import annotations
 
 import sys
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -39,20 +41,44 @@ PULLERS = {3: {"relaxed": 1747, "pull": 2147}, 4: {"relaxed": 2347, "pull": 1947
 DEGREES_PER_COUNT = 360.0 / 4096
 
 
+@dataclass(frozen=True)
+class Stand:
+    """Which motor is under test (its home target) and which pull (their relaxed and pull targets)."""
+
+    dut: int = DUT
+    home: int = HOME
+    pullers: dict = field(default_factory=lambda: dict(PULLERS))
+
+
+def stands(df: pd.DataFrame) -> list[Stand]:
+    """Every motor under test of a log, as the log's targets show the roles: a puller's target
+    takes two values (relaxed, the most frequent, and pull), a device under test's three (home,
+    the most frequent, and a step either side)."""
+    motors = sorted({int(c.split("(")[1].rstrip(")")) for c in df.columns if c.startswith("target pos (")})
+    pullers, duts = {}, []
+    for m in motors:
+        counts = df[col("target pos", m)].dropna().value_counts()
+        if len(counts) == 2:
+            pullers[m] = {"relaxed": int(counts.index[0]), "pull": int(counts.index[1])}
+        elif len(counts) >= 3:
+            duts.append((m, int(counts.index[0])))
+    return [Stand(m, home, pullers) for m, home in duts] if len(pullers) == 2 else []
+
+
 def col(kind: str, motor: int) -> str:
     return f"{kind} ({motor})"
 
 
-def relaxed(df: pd.DataFrame) -> np.ndarray:
+def relaxed(df: pd.DataFrame, stand: Stand = Stand()) -> np.ndarray:
     ok = np.ones(len(df), bool)
-    for m, p in PULLERS.items():
+    for m, p in stand.pullers.items():
         ok &= (df[col("target pos", m)] == p["relaxed"]).to_numpy()
         ok &= (np.abs(df[col("pos", m)] - p["relaxed"]) <= 4).to_numpy()
     return ok
 
 
-def pulling(df: pd.DataFrame, motor: int) -> np.ndarray:
-    p = PULLERS[motor]["pull"]
+def pulling(df: pd.DataFrame, motor: int, stand: Stand = Stand()) -> np.ndarray:
+    p = stand.pullers[motor]["pull"]
     return ((df[col("target pos", motor)] == p) & (np.abs(df[col("pos", motor)] - p) <= 100)).to_numpy()
 
 
@@ -62,17 +88,17 @@ def runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[::2], edges[1::2]))
 
 
-def authors(df: pd.DataFrame) -> dict:
-    """Loaded and unloaded play of motor 5 (the authors' definition, module docstring)."""
-    home = (df[col("target pos", DUT)] == HOME).to_numpy()
-    pos = df[col("pos", DUT)].to_numpy(float)
-    rel = relaxed(df)
-    groups = {(m, s): [] for m in PULLERS for s in ("loaded", "unloaded")}
+def authors(df: pd.DataFrame, stand: Stand = Stand()) -> dict:
+    """Loaded and unloaded play of the motor under test (the authors' definition, module docstring)."""
+    home = (df[col("target pos", stand.dut)] == stand.home).to_numpy()
+    pos = df[col("pos", stand.dut)].to_numpy(float)
+    rel = relaxed(df, stand)
+    groups = {(m, s): [] for m in stand.pullers for s in ("loaded", "unloaded")}
     for a, b in runs(home):
         if b - a < 10:
             continue
-        for m in PULLERS:
-            for pa, pb in runs(pulling(df, m)[a:b]):
+        for m in stand.pullers:
+            for pa, pb in runs(pulling(df, m, stand)[a:b]):
                 groups[m, "loaded"].append(pos[a + pa:a + pb])
                 after = [(ra, rb) for ra, rb in runs(rel[a:b]) if ra > pb - 1]
                 if after:
@@ -80,18 +106,18 @@ def authors(df: pd.DataFrame) -> dict:
                     groups[m, "unloaded"].append(pos[a + ra:a + rb])
     out = {}
     for state in ("loaded", "unloaded"):
-        means = [np.concatenate(groups[m, state]).mean() for m in PULLERS if groups[m, state]]
+        means = [np.concatenate(groups[m, state]).mean() for m in stand.pullers if groups[m, state]]
         out[state] = float(abs(means[0] - means[1])) if len(means) == 2 else float("nan")
     return out
 
 
-def settled_unpushed(df: pd.DataFrame) -> list[Level]:
-    """Motor 5's settled position at every target level, from the relaxed samples right after the
-    target step (before any pull), the last 3 of the first relaxed stretch that has stopped moving;
-    the standard error of a reading to the nearest count, 1/sqrt(12)."""
-    target = df[col("target pos", DUT)].to_numpy(float) - HOME
-    pos = df[col("pos", DUT)].to_numpy(float) - HOME
-    rel = relaxed(df)
+def settled_unpushed(df: pd.DataFrame, stand: Stand = Stand()) -> list[Level]:
+    """The settled position of the motor under test at every target level, from the relaxed
+    samples right after the target step (before any pull), the last 3 of the first relaxed stretch
+    that has stopped moving; the standard error of a reading to the nearest count, 1/sqrt(12)."""
+    target = df[col("target pos", stand.dut)].to_numpy(float) - stand.home
+    pos = df[col("pos", stand.dut)].to_numpy(float) - stand.home
+    rel = relaxed(df, stand)
     levels = []
     for a, b in _level_runs(target):
         for ra, rb in runs(rel[a:b]):
@@ -126,21 +152,22 @@ def main(paths) -> None:
     print("|---|---|---|---|---|---|")
     for path in paths:
         df = pd.read_csv(path)
-        if col("pos", DUT) not in df.columns:
-            continue
-        a = authors(df)
-        levels = settled_unpushed(df)
-        gap = branch_gap(levels)
-        try:
-            res = HistoryFit(max_degree=3).fit(levels).result_
-            lo, hi = res.ci["dead_band"]
-            fit = (f"{res.type}, {res.dead_band:.2f} [{lo:.2f}, {hi:.2f}] counts "
-                   f"({res.dead_band * DEGREES_PER_COUNT:.2f} deg){' MISFIT' if res.misfit else ''}")
-            chi = f"{res.chi2:.3g} / {res.dof}"
-        except Exception as err:                    # too few levels in a log: say so in the row
-            fit, chi = f"not identifiable ({err})", "-"
-        print(f"| {Path(path).name} | {a['loaded']:.2f} counts ({a['loaded'] * DEGREES_PER_COUNT:.2f} deg) | "
-              f"{a['unloaded']:.2f} counts ({a['unloaded'] * DEGREES_PER_COUNT:.2f} deg) | {gap:.2f} counts | {fit} | {chi} |")
+        for stand in stands(df):
+            a = authors(df, stand)
+            levels = settled_unpushed(df, stand)
+            gap = branch_gap(levels)
+            try:
+                res = HistoryFit(max_degree=3).fit(levels).result_
+                lo, hi = res.ci["dead_band"]
+                fit = (f"{res.type}, {res.dead_band:.2f} [{lo:.2f}, {hi:.2f}] counts "
+                       f"({res.dead_band * DEGREES_PER_COUNT:.2f} deg){' MISFIT' if res.misfit else ''}")
+                chi = f"{res.chi2:.3g} / {res.dof}"
+            except Exception as err:                    # too few levels in a log: say so in the row
+                fit, chi = f"not identifiable ({err})", "-"
+            print(f"| {Path(path).name} (motor {stand.dut}, {len(levels)} levels) | "
+                  f"{a['loaded']:.2f} counts ({a['loaded'] * DEGREES_PER_COUNT:.2f} deg) | "
+                  f"{a['unloaded']:.2f} counts ({a['unloaded'] * DEGREES_PER_COUNT:.2f} deg) | {gap:.2f} counts | "
+                  f"{fit} | {chi} |")
 
 
 def held_out(path: Path, out: Path, split_s: float | None = None) -> None:
@@ -188,6 +215,6 @@ def _config(base: dict, path: Path, **window) -> Path:
 
 
 if __name__ == "__main__":
-    logs = sys.argv[1:] or sorted(FOLDER.glob("motor_telemetry_single*.csv"))
+    logs = sys.argv[1:] or sorted(FOLDER.glob("motor_telemetry_*.csv"))
     main(logs)
-    held_out(Path(logs[0]), Path(__file__).resolve().parents[2] / "runs" / "sts3215_held_out")
+    held_out(FOLDER / "motor_telemetry_single.csv", Path(__file__).resolve().parents[2] / "runs" / "sts3215_held_out")
