@@ -24,7 +24,8 @@ from scipy import stats
 
 from hwid import config, protocols
 from hwid.identify.crlb import crlb
-from hwid.identify.linear import ExtrapolationWarning, KnownNonlinear, LinearEstimator
+from hwid.identify.known import KnownNonlinear
+from hwid.identify.linear import ExtrapolationWarning, LinearEstimator
 from hwid.model import from_config
 from hwid.plant import Record, SimulatedPlant
 

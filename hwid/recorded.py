@@ -425,16 +425,13 @@ def periodic_segments(u: np.ndarray, dt: float) -> list[dict]:
     u = np.asarray(u, float)
     s = u - float(np.mean(u))
     amp = float(np.percentile(np.abs(s), 95)) if s.size else 0.0
-    ups, low = [], False
+    ups: list[int] = []
     if amp > 0:
-        below = s < -0.1 * amp
-        above = s > 0.1 * amp
-        for k in np.flatnonzero(below | above):     # the samples past the hysteresis band, in order
-            if below[k]:
-                low = True
-            elif low:
-                ups.append(int(k))
-                low = False
+        # the samples past the hysteresis band, in order: an upward crossing is the first above
+        # after one below
+        past = np.flatnonzero(np.abs(s) > 0.1 * amp)
+        side = s[past] > 0
+        ups = past[1:][side[1:] & ~side[:-1]].tolist()
     out = []
     if len(ups) >= 4:
         periods = np.diff(ups).astype(float)

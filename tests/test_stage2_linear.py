@@ -8,7 +8,8 @@ import pytest
 
 from hwid import HwidError, config, protocols
 from hwid.identify.crlb import crlb
-from hwid.identify.linear import ExtrapolationWarning, KnownNonlinear, LinearEstimator, identify_linear
+from hwid.identify.known import KnownNonlinear
+from hwid.identify.linear import ExtrapolationWarning, LinearEstimator, identify_linear
 from hwid.model import InputNonlinearity, from_config
 from hwid.plant import Record
 from hwid.results import read_linear, write_linear

@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from hwid import config
-from hwid.identify.linear import ExtrapolationWarning, KnownNonlinear, identify_linear
+from hwid.identify.known import KnownNonlinear
+from hwid.identify.linear import ExtrapolationWarning, identify_linear
 from hwid.model import from_config
 from hwid.plant import make_plant
 

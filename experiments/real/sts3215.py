@@ -173,8 +173,6 @@ def main(paths) -> None:
 def held_out(path: Path, out: Path, split_s: float | None = None) -> None:
     """The whole-model fit on the log's first half (pushes included, as a user's first try would
     be), and ``hwid compare`` of that model on the second half, which it never saw."""
-    import yaml
-
     from hwid.compare import compare
     from hwid.config import load
     from hwid.identify.whole import WholeModelFit

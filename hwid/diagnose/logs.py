@@ -29,7 +29,7 @@ from hwid import HwidError
 from hwid.diagnose import experiments, gap
 from hwid.diagnose.effects import ModelSim, catalogue
 from hwid.diagnose.next_experiment import propose
-from hwid.diagnose.run import Validation, _scale, conclude
+from hwid.diagnose.run import Validation, _scale, conclude, drift_additivity
 from hwid.diagnose.sim_side import load_model
 from hwid.recorded import level_segments, load_records
 
@@ -162,13 +162,11 @@ def fit_pieces(parts) -> list:
 
 def identify_from_logs(cfg, pieces, out: Path, echo) -> tuple:
     """The whole-model fit on the fit parts (``whole.h5``); the model and its origin."""
+    from hwid.identify.history import identify_recorded
     from hwid.identify.whole import WholeModelFit
+    from hwid.model import InputNonlinearity
     from hwid.results import write_whole
     t0 = time.perf_counter()
-    from hwid.identify.history import identify_recorded
-    from hwid.model import InputNonlinearity
-    estimator = WholeModelFit.from_config(cfg)
-    estimator.staged = True
     try:    # stage 1 from the fit part's levels starts the borders, where they hold enough
         hist = identify_recorded(cfg, pieces)
         borders = InputNonlinearity(hist.type, 1.0, hist.slope_down, hist.d_plus, hist.d_minus)
@@ -176,7 +174,7 @@ def identify_from_logs(cfg, pieces, out: Path, echo) -> tuple:
              f"S^d = {hist.slope_down:.4g}{' (misfit)' if hist.misfit else ''}: the borders' start")
     except HwidError:
         borders = None
-    res = estimator.fit(pieces, borders=borders).result_
+    res = WholeModelFit.from_config(cfg, staged=True).fit(pieces, borders=borders).result_
     write_whole(out / "whole.h5", cfg, res)
     echo(f"identified the model from the fit records ({time.perf_counter() - t0:.1f} s): {res.type}, "
          f"d+ = {res.d_plus:.4g}, d- = {res.d_minus:.4g}, S^d = {res.slope_down:.4g}, h degree "
@@ -207,9 +205,10 @@ def without_slow_pairs(model, longest_s: float, echo) -> tuple:
                                             tuple(np.asarray(den, float).tolist()), G.delay), model.output), [note]
 
 
-def floor_from_logs(exps, recs, sim_all, design) -> tuple:
+def floor_from_logs(exps, recs, xs, F, design) -> tuple:
     """The noise floor, its source, and the repeat pairs ``(y, y_repeat, mask)`` (empty without
-    repeats); the floor is never below the output's resolution ``q / sqrt(12)``."""
+    repeats); the floor is never below the output's resolution ``q / sqrt(12)``. ``xs``: the
+    model's output on each experiment; ``F``: its input nonlinearity."""
     width = max(int(round(2 * design.settle_s / design.dt)), 20)
     y_scale = float(np.ptp(np.concatenate([r.y for r in recs])))
     distinct = list({id(r): r for r in recs}.values())
@@ -218,14 +217,14 @@ def floor_from_logs(exps, recs, sim_all, design) -> tuple:
         for b in distinct[i + 1:]:
             if a.u.size == b.u.size and a.u.size >= MIN_SCORED and np.allclose(a.u, b.u, rtol=0, atol=1e-9):
                 mask = np.zeros(a.u.size, bool)
-                mask[max(known_from(a.u, sim_all.model.input, width // 2), 0):] = True
+                mask[max(known_from(a.u, F, width // 2), 0):] = True
                 pairs.append((a.y, b.y, mask))
     if pairs:
         floor, source = gap.noise_floor(pairs, width, y_scale), "repeats"
     else:
         settle = max(int(round(design.settle_s / design.dt)), 1)
         x_of = {}
-        for e, r, x in zip(exps, recs, sim_all.x):
+        for e, r, x in zip(exps, recs, xs):
             known = x_of.get(id(r), (None, np.zeros(r.u.size, bool)))[1] | e.mask
             x_of[id(r)] = (x, known)
         holds, tails, keyed = [], [], {}
@@ -261,7 +260,7 @@ def floor_from_logs(exps, recs, sim_all, design) -> tuple:
             if repeats:
                 source += f" ({sum(len(g) for g in repeats)} of them repeats of {len(repeats)} level(s))"
         else:
-            res = [(r.y - x)[e.mask] for e, r, x in zip(exps, recs, sim_all.x)]
+            res = [(r.y - x)[e.mask] for e, r, x in zip(exps, recs, xs)]
             floor, source = gap.noise_floor_from_residual(res, y_scale), "residual high-frequency part"
     quanta = [float(r.attrs.get("output_resolution", 0.0) or 0.0) for r in distinct]
     q = max(quanta) if quanta else 0.0
@@ -296,20 +295,15 @@ def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effe
         raise HwidError("diagnose: after the samples where the model's state is unknown (until the input has "
                         f"spanned the play, then {1.5 * settle_s:.3g} s for G), the records leave no "
                         f"{'validation' if fit_idx else 'fit'} part of {MIN_SCORED} samples")
-    sim_all = ModelSim(sim_model, dt, [e.u for e in exps])
     sim_fit = ModelSim(sim_model, dt, [exps[i].u for i in fit_idx])
     sim_val = ModelSim(sim_model, dt, [exps[i].u for i in val_idx])
     scale = _scale(design, exps, sim_fit, sim_val, recs)
     val = Validation(design, exps, recs, fit_idx, val_idx, sim_fit, sim_val, scale, 0.0, 0.0)
-    floor, source, pairs = floor_from_logs(exps, recs, sim_all, design)
+    xs = dict(zip(fit_idx, sim_fit.x)) | dict(zip(val_idx, sim_val.x))
+    floor, source, pairs = floor_from_logs(exps, recs, [xs[i] for i in range(len(exps))], sim_model.input, design)
     echo(f"records split by {how}: fit {', '.join(exps[i].name for i in fit_idx)}; validation "
          f"{', '.join(exps[i].name for i in val_idx)}; noise floor {floor.sigma:.4g} from the {source}")
-    if pairs:
-        additive = gap.drift_is_additive(pairs, [0.5 * (np.asarray(a, float) + np.asarray(b, float))
-                                                 for a, b, _ in pairs], max(int(round(settle_s / (2 * dt))), 5),
-                                         floor.sigma)
-    else:   # nothing tells an additive drift from a wandering gain without repeats
-        additive = {"output_share": float("nan"), "fast_share": float("nan"), "additive": True}
+    additive = drift_additivity(pairs, design, floor.sigma)
     data = {"split": how, "fit": [exps[i].name for i in fit_idx], "validation": [exps[i].name for i in val_idx],
             "scored_samples": {e.name: int(e.mask.sum()) for e in exps}, "noise_source": source,
             "records": [{"name": r.name, "samples": int(r.u.size), "seconds": float(r.u.size * dt)} for r in records]}

@@ -143,11 +143,16 @@ class EffectFitter:
             simw = self._g_sims(g)[0 if which == "fit" else 1]
         else:
             simw = self.sfw if which == "fit" else self.svw
+        return self._phi(eff, theta, simw)
+
+    def _phi(self, eff, own, simw) -> list[np.ndarray]:
+        """h's design matrix on each experiment of ``simw`` (the model with h = identity) with the
+        effect ``eff`` at its own parameters ``own`` (a linear output stage applied to each column)."""
         out = []
         for i in range(len(simw.inputs)):
-            Phi = self._basis(simw.w[i] if eff is None else eff.pre(simw, theta, i))
+            Phi = self._basis(simw.w[i] if eff is None else eff.pre(simw, own, i))
             if eff is not None and eff.post_linear and type(eff).post is not effect_models.Effect.post:
-                Phi = np.column_stack([eff.post(Phi[:, k], theta, simw.dt) for k in range(Phi.shape[1])])
+                Phi = np.column_stack([eff.post(Phi[:, k], own, simw.dt) for k in range(Phi.shape[1])])
             out.append(Phi)
         return out
 
@@ -587,14 +592,8 @@ class EffectFitter:
         else:
             own, F, G = theta, self.sfw.model.input, self.sfw.model.linear
         simw = effect_models.ModelSim(HWModel(F, G, PolynomialH((0.0, 1.0))), dt, inputs)
-        out = []
-        for i in range(len(inputs)):
-            Phi = self._basis(simw.w[i] if eff is None else eff.pre(simw, own, i))
-            if eff is not None and eff.post_linear and type(eff).post is not effect_models.Effect.post:
-                Phi = np.column_stack([eff.post(Phi[:, k], own, dt) for k in range(Phi.shape[1])])
-            x = Phi @ c
-            out.append(x if eff is None or eff.post_linear else eff.post(x, own, dt))
-        return out
+        xs = [Phi @ c for Phi in self._phi(eff, own, simw)]
+        return [x if eff is None or eff.post_linear else eff.post(x, own, dt) for x in xs]
 
     def model_dict(self, m) -> dict:
         """F and G for the model parameters ``m``, as in the summary's ``model``."""

@@ -83,8 +83,7 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
     val = run_validation(cfg, plant, sim_model, origin, identified, echo)
     calls_all = plant.calls
     floor, pairs = noise_floor(val)
-    additive = gap.drift_is_additive(pairs, [0.5 * (np.asarray(a, float) + np.asarray(b, float)) for a, b, _ in pairs],
-                                     max(int(round(val.design.settle_s / (2 * val.design.dt))), 5), floor.sigma)
+    additive = drift_additivity(pairs, val.design, floor.sigma)
     cost = {"plant_calls_identification": calls_identified - calls_start,
             "plant_calls_validation": calls_all - calls_identified,
             "plant_calls_reused": plant.reused,
@@ -92,6 +91,16 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
             "rig_seconds_identification": _identification_rig_seconds(cfg, origin),
             "seconds_model": seconds_model, "seconds_rig_validation": val.seconds_rig}
     return conclude(cfg, out, json_path, val, floor, additive, sim_model, origin, effects, cost, t_start, echo)
+
+
+def drift_additivity(pairs, design, sigma: float) -> dict:
+    """Whether what changes between repeats is an additive drift (:func:`hwid.diagnose.gap.drift_is_additive`,
+    each pair against its own mean output); without repeats nothing tells it from a wandering gain:
+    the shares are unknown (NaN) and a drift is not ruled out."""
+    if not pairs:
+        return {"output_share": float("nan"), "fast_share": float("nan"), "additive": True}
+    return gap.drift_is_additive(pairs, [0.5 * (np.asarray(a, float) + np.asarray(b, float)) for a, b, _ in pairs],
+                                 max(int(round(design.settle_s / (2 * design.dt))), 5), sigma)
 
 
 def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, sim_model, origin: dict, effects,

@@ -27,9 +27,8 @@ mean ``s_0`` carries no information about G and is left out of both estimators a
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, Optional, Protocol, Sequence
+from typing import Optional
 
 import numpy as np
 from numba import njit
@@ -37,6 +36,7 @@ from scipy import stats
 
 from hwid import HwidError
 from hwid.identify.crlb import crlb
+from hwid.identify.known import KnownNonlinear
 from hwid.identify.harmonics import (DistortedHarmonics, HarmonicFit, HarmonicModel, distorted_harmonics,
                                      fit_harmonics, period_sums, span_projector)
 from hwid.identify.lm import lm
@@ -54,54 +54,6 @@ def _all_close(a, b, atol):
 
 class ExtrapolationWarning(UserWarning):
     """``U |G|`` drives ``w`` outside the range over which ``h`` was identified (stage 1)."""
-
-
-class NonlinearLike(Protocol):
-    """What stage 2 needs from a stage 1 result (:class:`hwid.identify.nonlinear.NonlinearResult`)."""
-
-    h_coefficients: Sequence[float]
-    w_range: tuple[float, float]
-
-    def input_nonlinearity(self): ...
-
-
-@dataclass(frozen=True)
-class KnownNonlinear:
-    """A stage 1 stand-in built from a known normalised model (tests, the paper reproduction).
-
-    ``w_range`` is the range of ``w`` the config's staircases visit (where stage 1 would identify h).
-    """
-
-    input: Any                                   # hwid.model.InputNonlinearity (normalised)
-    h_coefficients: tuple[float, ...]
-    w_range: tuple[float, float] = (-np.inf, np.inf)
-
-    def input_nonlinearity(self):
-        return self.input
-
-    def h(self, w):
-        return np.polynomial.polynomial.polyval(np.asarray(w, float), self.h_coefficients)
-
-    @classmethod
-    def from_config(cls, cfg) -> "KnownNonlinear":
-        """The true normalised ``(F_bar, h_bar)`` of ``cfg.plant`` (eqs. 4a-c)."""
-        from hwid import protocols
-        from hwid.blocks.static import PolynomialH
-        from hwid.model import from_config
-        if cfg.plant.kind != "hammerstein_wiener":
-            raise HwidError("the true nonlinearity is only known for a simulated (hammerstein_wiener) plant")
-        m = from_config(cfg.plant).normalised()
-        if not isinstance(m.output, PolynomialH):
-            raise HwidError("stage 2 needs a polynomial h (the config gives a piecewise one)")
-        w_range = (-np.inf, np.inf)
-        if cfg.protocols.staircase is not None:
-            ws = []
-            for st in protocols.staircases(cfg):
-                v = m.input.steady(st.all_levels, 0.0)[st.lead_in.size:]
-                ws.append(v)
-            ws = np.concatenate(ws)
-            w_range = (float(ws.min()), float(ws.max()))
-        return cls(m.input, tuple(m.output.coefficients), w_range)
 
 
 def _wrap(phi):

@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hwid import HwidError, protocols
-from hwid.identify.linear import KnownNonlinear, estimate_response
+from hwid.identify.known import KnownNonlinear
+from hwid.identify.linear import estimate_response
 from hwid.identify.result import HistoryResult, LinearResult
 from hwid.model import InputNonlinearity
 

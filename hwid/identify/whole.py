@@ -252,12 +252,12 @@ class WholeModelFit:
         self.max_nfev = max_nfev
 
     @classmethod
-    def from_config(cls, cfg) -> "WholeModelFit":
+    def from_config(cls, cfg, staged: bool = False) -> "WholeModelFit":
         """The estimator of ``cfg.identification.whole``."""
         whole = cfg.identification.whole
         types = ("backlash", "backlash_inverse") if whole.input_type == "auto" else (whole.input_type,)
         return cls(max_degree=whole.max_degree, structures=[s for s in STRUCTURES if s.order <= whole.max_order],
-                   delay=whole.delay, types=types)
+                   delay=whole.delay, types=types, staged=staged)
 
     def fit(self, records, start: HWModel | None = None, borders=None) -> "WholeModelFit":
         """Fit on ``records`` (each with ``u``, ``y``, ``dt``); ``start`` (a normalised model, e.g.
@@ -270,7 +270,7 @@ class WholeModelFit:
         records = [r for r in records if r.y is not None and r.u.size > 10]
         if not records:
             raise HwidError("the whole-model fit needs at least one experiment of more than 10 samples")
-        self._borders = borders if start is None else None
+        borders = borders if start is None else None
         types = (start.input.type,) if start is not None else \
             ((borders.type,) if borders is not None else tuple(self.types))
         structures = list(self.structures or STRUCTURES)
@@ -289,7 +289,7 @@ class WholeModelFit:
         def path(kind, structure, degs):
             """Fits of h_bar's degrees ``degs`` in order, each from the start and from the one before."""
             first = _best_states(_Problem(records, kind, structure, max(degs), self.delay),
-                                 self._start(records, kind, structure, start))
+                                 self._start(records, kind, structure, start, borders))
             theta0, rows = None, []
             for degree in degs:
                 prob = _Problem(records, kind, structure, degree, self.delay)
@@ -338,9 +338,9 @@ class WholeModelFit:
         self.result_ = self._result(prob, theta, table, solutions.get((prob.type, prob.structure, prob.degree + 1)))
         return self
 
-    def _start(self, records, kind, structure, start: HWModel | None) -> np.ndarray:
-        """Outer start values: from ``start`` where given, else the best of a coarse border grid
-        (h_bar solved for, G at its default start)."""
+    def _start(self, records, kind, structure, start: HWModel | None, borders=None) -> np.ndarray:
+        """Outer start values: from ``start`` where given, else from ``borders`` (G at its default
+        start), else the best of a coarse border grid (h_bar solved for, G at its default start)."""
         span = max(r.u.size * r.dt for r in records)
         dt = records[0].dt
         g_p = g_params_from(structure, None if start is None else start.linear, span, dt)
@@ -348,8 +348,8 @@ class WholeModelFit:
         states = []
         for r in records:
             states += [0.0, float(np.median(r.u[: max(3, r.u.size // 50)]))]
-        if start is not None or getattr(self, "_borders", None) is not None:
-            f = start.input if start is not None else self._borders
+        if start is not None or borders is not None:
+            f = start.input if start is not None else borders
             return np.array([f.d_plus, np.log(f.slope_down), np.log(max(f.d_plus - f.d_minus, 1e-6)),
                              *g_p, *extra, *states], float)
         u_all = np.concatenate([r.u for r in records])
