@@ -18,16 +18,25 @@ free-run simulation error (never one-step-ahead): RMS and RMS over the noise sig
   MATLAB's ``nlhw`` offers for play): what memory in the input block is worth;
 * ``truth``: the true plant without noise (the floor).
 
+Then the STS3215 servo logs (``../shared/data/real/sts3215/``, skipped where the folder is absent):
+for every log and motor under test, every method is fitted on one half of the log as recorded and
+judged by free-run RMS (counts) on the other half, both ways round: over every sample, and over the
+samples where both puller servos are relaxed (their pushes move the output through the play while
+the target holds, a load no method here has an input for). There is no truth there; the encoder's
+quantum alone leaves ``1/sqrt(12)`` count.
+
 sysidentpy pins an older numpy, so the peers get a virtual environment of their own:
 ``python3.11 -m venv .venv-peers && .venv-peers/bin/pip install -e '.[peers]'``; then
-``.venv-peers/bin/python benchmarks/bench_peers.py`` prints the table.
+``.venv-peers/bin/python benchmarks/bench_peers.py [PLANT ... | sts]`` prints the tables (every plant and the STS3215 logs when none is named).
 """
 from __future__ import annotations
 
 import os
 import platform
+import sys
 import time
 import warnings
+from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -42,7 +51,7 @@ from hwid.identify.linear import ExtrapolationWarning, identify_linear  # noqa: 
 from hwid.identify.nonlinear import identify_nonlinear  # noqa: E402
 from hwid.identify.result import model_from_stages  # noqa: E402
 from hwid.identify.whole import Structure, WholeModelFit, g_from_params, g_params_from  # noqa: E402
-from hwid.model import from_config  # noqa: E402
+from hwid.model import HWModel, from_config  # noqa: E402
 from hwid.plant import Record, SimulatedPlant  # noqa: E402
 
 SIGMA = 0.01
@@ -183,14 +192,14 @@ def hwid_protocol_records(cfg, truth):
     return list(nl_records) + list(lin_records), model_from_stages(nl, lin)
 
 
-def judge(simulate_or_model, validation) -> float:
-    """RMS over sigma of the free run on the validation records (hwid models from their estimated
-    initial state, as ``hwid compare`` does)."""
+def judge(simulate_or_model, validation, sigma: float = SIGMA) -> float:
+    """RMS over ``sigma`` of the free run on the validation records (hwid models from their
+    estimated initial state, as ``hwid compare`` does)."""
     if hasattr(simulate_or_model, "simulate") and hasattr(simulate_or_model, "input"):
         result, _ = compare_records(simulate_or_model, validation)
-        return result.rms / SIGMA
+        return result.rms / sigma
     errors = np.concatenate([r.y - simulate_or_model(r) for r in validation])
-    return float(np.sqrt(np.mean(errors ** 2))) / SIGMA
+    return float(np.sqrt(np.mean(errors ** 2))) / sigma
 
 
 def run_plant(name: str) -> list[tuple]:
@@ -225,16 +234,130 @@ def run_plant(name: str) -> list[tuple]:
     return rows
 
 
+# --------------------------------------------------------------------------------- the STS3215 logs
+
+STS_FOLDER = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "sts3215"
+
+
+def sts_halves(path: Path, stand) -> tuple[list[Record], list[np.ndarray], config.Config]:
+    """The log of the motor under test (target in, position out, counts about its home) as two
+    halves, each with the mask of its samples where both pullers are relaxed (at their relaxed
+    target and within 4 counts of it, as ``experiments/real/sts3215.py: relaxed`` reads them)."""
+    from hwid.recorded import load_records
+
+    def channel(motor: int, offset: int) -> dict:
+        return {"file": str(path), "time": {"column": "timestamp"},
+                "input": {"column": f"target pos ({motor})", "offset": -offset},
+                "output": {"column": f"pos ({motor})", "offset": -offset}}
+    base = {"name": f"sts-{path.stem}-{stand.dut}", "sampling": {"dt": 0.1},
+            "plant": {"kind": "recorded", "experiments": [channel(stand.dut, stand.home)]},
+            "identification": {"whole": {"enabled": True, "max_order": 2}}}
+    cfg = config.loads(yaml.safe_dump(base))
+    (whole,) = load_records(cfg)
+    relaxed = np.ones(whole.u.size, bool)
+    for motor, p in stand.pullers.items():
+        base["plant"]["experiments"] = [channel(motor, p["relaxed"])]
+        (puller,) = load_records(config.loads(yaml.safe_dump(base)))
+        relaxed &= (puller.u[:whole.u.size] == 0) & (np.abs(puller.y[:whole.u.size]) <= 4)
+    half = whole.u.size // 2
+    return ([Record("first half", whole.dt, whole.u[:half], whole.y[:half]),
+             Record("second half", whole.dt, whole.u[half:], whole.y[half:])],
+            [relaxed[:half], relaxed[half:]], cfg)
+
+
+def judge_counts(simulate_or_model, record: Record, relaxed: np.ndarray) -> tuple[float, float]:
+    """Free-run RMS (counts) on a held-out half: over every sample, and over the relaxed ones."""
+    if hasattr(simulate_or_model, "simulate") and hasattr(simulate_or_model, "input"):
+        _, sims = compare_records(simulate_or_model, [record])
+        y_hat = sims[record.name]
+    else:
+        y_hat = simulate_or_model(record)
+    with np.errstate(all="ignore"):
+        err = record.y - y_hat
+        return float(np.sqrt(np.mean(err ** 2))), float(np.sqrt(np.mean(err[relaxed] ** 2)))
+
+
+def sts_whole(cfg, records, staged: bool) -> HWModel:
+    """hwid's whole-model fit as ``hwid run`` does it (``staged``: as ``hwid diagnose`` on logs
+    does, the borders started from stage 1 on the records' levels where they hold enough)."""
+    from hwid import HwidError
+    from hwid.identify.history import identify_recorded
+    from hwid.model import InputNonlinearity
+    borders = None
+    if staged:
+        try:
+            hist = identify_recorded(cfg, records)
+            borders = InputNonlinearity(hist.type, 1.0, hist.slope_down, hist.d_plus, hist.d_minus)
+        except HwidError:
+            pass
+    return WholeModelFit.from_config(cfg, staged=staged).fit(records, borders=borders).result_.model()
+
+
+def sts_rows() -> list[tuple]:
+    """Every log and motor under test: each method fitted on one half, judged on the other, both
+    ways round; the mean RMS (counts) over the two held-out halves, all samples and relaxed ones."""
+    import pandas as pd
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments" / "real"))
+    from sts3215 import stands
+    rows = []
+    for path in sorted(STS_FOLDER.glob("motor_telemetry_*.csv")):
+        for stand in stands(pd.read_csv(path)):
+            halves, relaxed, cfg = sts_halves(path, stand)
+            name = f"{path.stem.removeprefix('motor_telemetry_')} (motor {stand.dut})"
+            methods = (("hwid whole", lambda r: sts_whole(cfg, r, False), "none"),
+                       ("hwid whole, from stage 1", lambda r: sts_whole(cfg, r, True), "none"),
+                       ("NARX (FROLS)", fit_narx, "degree 3, lags 2"),
+                       ("linear OE", lambda r: fit_output_error(r, False), "G order 1-2"),
+                       ("nlhw analogue", lambda r: fit_output_error(r, True), "dead zone, h degree 5, G order 1-2"))
+            for method, fit, tuned in methods:
+                scores, seconds = [], 0.0
+                for k in (0, 1):
+                    t0 = time.perf_counter()
+                    try:
+                        model = fit([halves[k]])
+                        seconds += time.perf_counter() - t0
+                        scores.append(judge_counts(model, halves[1 - k], relaxed[1 - k]))
+                    except Exception as err:  # noqa: BLE001 - a method that fails is reported, not hidden
+                        seconds += time.perf_counter() - t0
+                        tuned = f"failed: {err}"
+                        scores.append((float("nan"), float("nan")))
+                rms_all, rms_relaxed = np.mean(scores, axis=0)
+                rows.append((name, method, rms_all, rms_relaxed, seconds / 2, tuned))
+            print(f"  {name}: {halves[0].u.size} + {halves[1].u.size} samples, "
+                  f"{int(relaxed[0].sum() + relaxed[1].sum())} relaxed", flush=True)
+    return rows
+
+
+def _number(x: float) -> str:
+    return "diverged" if not np.isfinite(x) or x > 1e6 else f"{x:.3g}"
+
+
 def main():
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
           f"numpy {np.__version__}")
+    only = set(sys.argv[1:])          # plant names, or "sts"; none: all of them
     rows = []
     for name in PLANTS:
-        rows += run_plant(name)
-    print("\n| plant | data | method | RMS / sigma (held out, free run) | fit s | tuned by hand |")
-    print("|---|---|---|---|---|---|")
-    for plant, design, method, ratio, seconds, tuned in rows:
-        print(f"| {plant} | {design} | {method} | {ratio:.3g} | {seconds:.1f} | {tuned} |")
+        if not only or name in only:
+            rows += run_plant(name)
+    sts = []
+    if not only or "sts" in only:
+        if STS_FOLDER.is_dir():
+            sts = sts_rows()
+        else:
+            print(f"  STS3215 logs skipped: {STS_FOLDER} is absent")
+    if rows:
+        print("\n| plant | data | method | RMS / sigma (held out, free run) | fit s | tuned by hand |")
+        print("|---|---|---|---|---|---|")
+        for plant, design, method, ratio, seconds, tuned in rows:
+            print(f"| {plant} | {design} | {method} | {_number(ratio)} | {seconds:.1f} | {tuned} |")
+    if sts:
+        print(f"\nSTS3215 logs: fitted on one half, free run on the other, both ways round (mean); counts; "
+              f"the encoder's quantum alone leaves {1 / np.sqrt(12):.2f}")
+        print("| log (motor) | method | RMS, every sample | RMS, pullers relaxed | fit s | tuned by hand |")
+        print("|---|---|---|---|---|---|")
+        for log, method, rms_all, rms_relaxed, seconds, tuned in sts:
+            print(f"| {log} | {method} | {_number(rms_all)} | {_number(rms_relaxed)} | {seconds:.1f} | {tuned} |")
 
 
 if __name__ == "__main__":
