@@ -84,7 +84,9 @@ def test_short_levels_taken_when_settled_and_left_out_with_a_reason_when_not():
     y_moving = np.linspace(0.0, 1.0, 12)
     u = np.repeat([0.1, 0.2], 12)
     levels, warns = settled_levels([Record("log", DT, u, np.concatenate([y_steady, y_moving]))])
-    assert len(levels) == 1 and abs(levels[0].x - 0.3) < 0.002
+    settled = [lv for lv in levels if lv.scored]
+    assert len(settled) == 1 and abs(settled[0].x - 0.3) < 0.002
+    assert len(levels) == 2 and not levels[1].scored      # kept in the sequence, not scored
     assert any("still moving" in w and "at least 20 samples" in w for w in warns)
 
 
@@ -144,9 +146,9 @@ def test_sts3215_log_levels_read_as_the_log_shows_them():
     cfg = config.load(Path(__file__).resolve().parents[1] / "configs" / "recorded_sts3215.yaml")
     records = load_records(cfg)
     levels, warns = settled_levels(records)
-    ends = [lv for lv in levels if abs(lv.u) == 100]
+    ends = [lv for lv in levels if abs(lv.u) == 100 and lv.scored]
     assert ends and all(93.5 <= abs(lv.x) <= 95.5 for lv in ends)
-    assert all(lv.se >= 1 / np.sqrt(12) - 1e-12 for lv in levels)
+    assert all(lv.se >= 1 / np.sqrt(12) - 1e-12 for lv in levels if lv.scored)
     assert any("still moving" in w for w in warns)
     # with h_bar linear (three distinct targets), its gain is the log's own: the span of the
     # settled +-100 readings over the 200-count span of the targets

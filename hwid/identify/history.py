@@ -15,8 +15,9 @@ when at least 20 samples, goes to :func:`hwid.identify.steady.steady_levels` (an
 found from the data again, batch-means standard errors); shorter ones by extrapolating their
 approach with the common time constant (:func:`_extrapolated`), or, shorter than 6 samples, from
 their last half when it is evidently steady (spread within two output quanta or three noise standard
-deviations, the noise from the levels' successive differences), otherwise left out with one line
-saying how many samples would be needed.
+deviations, the noise from the levels' successive differences); otherwise the level is not scored,
+with one line saying how many samples would be needed, but it stays in the sequence F's recursion
+runs over (a level the gear passed through moves its state whether or not it settled).
 Quantised outputs: a settled level read to the nearest count carries ``q / sqrt(12)`` that
 averaging does not remove, so every standard error is at least that.
 
@@ -78,9 +79,12 @@ def settled_levels(records, resolution: float | None = None) -> tuple[list[Level
             got = (steady.get((r.name, s["start"])) or _extrapolated(y, tau, max(sigma, (q or 0.0) / np.sqrt(12.0)))
                    or _short_level(y, q, sigma))
             if got is None:
+                # not scored, but kept in the sequence: the gear still passed through it
                 warns.append(f"{r.name}: the level at u = {s['value']:.6g} (samples {s['start']}-{s['stop']}) is "
                              f"still moving at its end; holds of at least {MIN_STEADY} samples are needed to find "
-                             "its steady state: left out")
+                             "its steady state: not scored (the input's passage through it is kept)")
+                levels.append(Level(r.name, k, float(s["value"]), float(y[-1]), float(max(sigma, 1e-300)), 0, False))
+                k += 1
                 continue
             mean, se, n = got
             if q:
@@ -174,11 +178,14 @@ class HistoryFit:
         self.types = tuple(types)
 
     def fit(self, levels: list[Level], warnings=()) -> "HistoryFit":
-        if len(levels) < 4:
-            raise HwidError(f"stage 1 from a recorded history needs at least 4 settled levels; found {len(levels)} "
+        """Fit on ``levels`` in recorded order; those with ``scored`` false (not settled) are not
+        scored but the input's passage through them still moves F's state."""
+        n_settled = sum(lv.scored for lv in levels)
+        if n_settled < 4:
+            raise HwidError(f"stage 1 from a recorded history needs at least 4 settled levels; found {n_settled} "
                             "(for records without held levels, fit the whole model: identification.whole.enabled: true)")
         names = list(dict.fromkeys(lv.record for lv in levels))
-        u = np.array([lv.u for lv in levels])
+        u = np.array([lv.u for lv in levels if lv.scored])
         width = float(np.ptp(u)) or 1.0
         table, best = [], None
         for kind in self.types:
@@ -259,7 +266,7 @@ class _Problem:
         self.levels, self.names, self.type, self.degree = levels, names, kind, degree
         self.by_record = [[i for i, lv in enumerate(levels) if lv.record == name] for name in names]
         self.u = np.array([lv.u for lv in levels])
-        self.scored = np.ones(len(levels), bool)
+        self.scored = np.array([lv.scored for lv in levels], bool)
         if kind != "backlash":
             for idx in self.by_record:
                 self.scored[idx[0]] = False
@@ -274,16 +281,21 @@ class _Problem:
     def n_outer(self) -> int:
         return 3 + (len(self.names) if self.type == "backlash" else 0)
 
-    def starts(self, width: float) -> list[np.ndarray]:
+    def starts(self, width: float, keep: int = 6) -> list[np.ndarray]:
+        """The ``keep`` best of a grid over the borders' place, the play's width and S^d. With a
+        non-invertible h_bar the cost has a valley per way of folding the levels onto h_bar, so the
+        grid spans the play up to 60 % of the input range and the borders' centre over +-30 %."""
         out = []
-        for a in (-0.1, 0.0, 0.1):
-            for b in (0.02, 0.1, 0.3):
-                for frac in ((-6.0, 0.0, 6.0) if self.type == "backlash" else (0.0,)):
-                    out.append(np.array([a * width, 0.0, np.log(b * width)]
-                                        + [frac] * (self.n_outer - 3)))
+        for a in np.linspace(-0.3, 0.3, 7):
+            for b in (0.02, 0.06, 0.15, 0.3, 0.45, 0.6):
+                for ln_sd in (-0.4, 0.0, 0.4):
+                    for frac in ((-6.0, 0.0, 6.0) if self.type == "backlash" else (0.0,)):
+                        # a*width is the play's centre: d_plus sits half the play above it
+                        out.append(np.array([(a + 0.5 * b) * width, ln_sd, np.log(b * width)]
+                                            + [frac] * (self.n_outer - 3)))
         costs = [float(np.sum(self.residual(t) ** 2)) for t in out]
         order = np.argsort(costs)
-        return [out[i] for i in order[:4]]
+        return [out[i] for i in order[:keep]]
 
     def bounds(self, width: float):
         lo = [-2.0 * width, np.log(0.05), np.log(1e-6 * width)] + [-30.0] * (self.n_outer - 3)

@@ -348,8 +348,8 @@ class WholeModelFit:
         states = []
         for r in records:
             states += [0.0, float(np.median(r.u[: max(3, r.u.size // 50)]))]
-        if start is not None or borders is not None:
-            f = start.input if start is not None else borders
+        if start is not None:
+            f = start.input
             return np.array([f.d_plus, np.log(f.slope_down), np.log(max(f.d_plus - f.d_minus, 1e-6)),
                              *g_p, *extra, *states], float)
         u_all = np.concatenate([r.u for r in records])
@@ -358,6 +358,12 @@ class WholeModelFit:
         prob = _Problem(records, kind, structure, 3, self.delay)
         grid = [np.array([centre + a * width, 0.0, np.log(b * width), *g_p, *extra, *states])
                 for a in np.linspace(-0.25, 0.25, 7) for b in (0.02, 0.1, 0.3, 0.6)]
+        if borders is not None:
+            # the borders (stage 1 from the levels) compete with the grid: from few levels they can
+            # be far off while fitting those levels exactly, and the moving records then say so
+            f = borders
+            grid.insert(0, np.array([f.d_plus, np.log(f.slope_down), np.log(max(f.d_plus - f.d_minus, 1e-6)),
+                                     *g_p, *extra, *states], float))
         costs = [float(np.sum(prob.residual(t) ** 2)) for t in grid]
         return grid[int(np.argmin(costs))]
 

@@ -312,7 +312,7 @@ def history_html(hist) -> str:
     levels = [_tr(["record", "#", "u", "settled output", "standard error", "samples", "scored"], True)]
     for lv in hist.levels:
         levels.append(_tr([_html.escape(lv.record), str(lv.index), _num(lv.u), _num(lv.x), _num(lv.se), str(lv.n),
-                           "yes" if lv.scored else "no (state unknown)"]))
+                           "yes" if lv.scored else ("no (not settled)" if lv.n == 0 else "no (state unknown)")]))
     selection = [_tr(["type", "degree", "chi2", "criterion"], True)]
     for s in sorted(hist.table, key=lambda s: s["criterion"]):
         selection.append(_tr([s["type"], str(s["degree"]), _num(s["chi2"]), _num(s["criterion"], 6)]))
