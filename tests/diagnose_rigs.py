@@ -21,7 +21,8 @@ BASE = {"kind": "hammerstein_wiener",
 NOISE = 0.01
 TRUTH = {"sensor_lag": {"tau_s": 1.5}, "rate_limit": {"rate": 0.4}, "rate_limit_slow": {"rate": 2.0 / 15.0}, "input_deadzone": {"delta": 0.2},
          "sensor_saturation": {"y_lo": -0.55, "y_hi": 0.55}, "resonance": {"omega_n": 4.0, "zeta": 0.05},
-         "rate_limit_inverse": {"rate": 5.6}, "input_saturation_paper": {"u_lo": -1.23, "u_hi": 0.73}}
+         "rate_limit_inverse": {"rate": 5.6}, "input_saturation_paper": {"u_lo": -1.23, "u_hi": 0.73},
+         "bent_borders": {"up": 0.06, "down": -0.04}}
 # the paper's plant (Section 6) as an hwid model: the base of the paper-rig tests
 PAPER = {"kind": "hammerstein_wiener",
          "input_nonlinearity": {"type": "backlash", "slope_up": 1.0, "slope_down": 1.0, "d_plus": 0.5, "d_minus": -0.5},
@@ -146,6 +147,28 @@ def rate_limit_slow(u, dt):
     """A slow actuator: 15 s to cross the range [-1, 1] (G settles in 4 s), its position carried
     over from call to call."""
     return _carried_actuator("rate_limit_slow", TRUTH["rate_limit_slow"]["rate"], u, dt)
+
+
+def bent_borders(u, dt):
+    """Borders bent as S-curves, not any polynomial: the ascending one by
+    ``+0.06 tanh(2.5 u) / tanh(2.5)``, the descending one by ``-0.04`` times the same (the play
+    narrows towards the ends), unit slopes and the base's play otherwise."""
+    r = _rig("bent_borders")
+    u = np.asarray(u, float)
+    bend = np.tanh(2.5 * u) / np.tanh(2.5)
+    lo, hi = u - 0.3 + TRUTH["bent_borders"]["up"] * bend, u + 0.3 + TRUTH["bent_borders"]["down"] * bend
+    v = np.empty_like(u)
+    g = r.gear
+    for i in range(u.size):
+        g = min(max(g, lo[i]), hi[i])
+        v[i] = g
+    r.gear = g
+    num, den = [2.0], [1.0, 3.0, 2.0]
+    b, a, _ = signal.cont2discrete((num, den), dt, method="zoh")[:3]
+    b = np.ravel(b)
+    zi = signal.lfiltic(b, a, y=[v[0]] * (len(a) - 1), x=[v[0]] * (len(b) - 1))
+    w = signal.lfilter(b, a, v, zi=zi)[0]
+    return w - 0.1 * w ** 3 + r.noise(u.size)
 
 
 def input_deadzone(u, dt):

@@ -135,6 +135,20 @@ def test_slow_actuator_named_with_its_rate(tmp_path_factory, base_model):
     assert abs(s["gap_after"] - R.NOISE) < 0.1 * R.NOISE
 
 
+def test_borders_bent_in_an_s_curve_named_with_the_degree_the_data_choose(tmp_path_factory, base_model):
+    """Borders bent as S-curves (tanh, no polynomial): the family's degree grows while the fit
+    experiments' criterion improves, and the bend chosen leaves the rig's own noise on the
+    validation experiments (the floor is known to a few per cent; degree 2 alone fits the fit
+    experiments to their noise but leaves 1.09x the floor on validation, which reaches further)."""
+    s, _ = _run(tmp_path_factory, "bent_borders", base_model)
+    top = s["candidates"][0]
+    assert s["verdict"]["effect"] == "curved_borders" == top["effect"]
+    degree = max(int(k[1:].split("_")[0]) for k in top["params"] if k != "c0")
+    assert degree > 2
+    assert s["gap_before"] > 3 * s["noise_floor"]
+    assert s["gap_after"] < 1.05 * s["noise_floor"]
+
+
 def test_outside_effect_is_unexplained(tmp_path_factory, base_model):
     s, _ = _run(tmp_path_factory, "output_friction", base_model)
     assert s["verdict"]["effect"] == "unexplained"

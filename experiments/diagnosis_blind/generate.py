@@ -84,6 +84,15 @@ def _y_range(b):
     return float(y.min()), float(y.max())
 
 
+#: the shapes a bent border takes (rigkit._bow): symmetric and odd bends, S-curves, one-sided
+#: stiffening, a local bump -- any smooth shape, not one family's own
+BOW_SHAPES = ["sine", "parabola", "cubic", "s_curve", "one_sided", "bump"]
+
+
+def _log_uniform(rng: np.random.Generator, lo: float, hi: float) -> float:
+    return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+
+
 def effect_params(effect: str, b: dict, rng: np.random.Generator) -> dict:
     """A random strength, clearly above the base plant's noise."""
     lo, hi = b["levels"]
@@ -93,19 +102,23 @@ def effect_params(effect: str, b: dict, rng: np.random.Generator) -> dict:
     if effect == "input_saturation":
         return {"lo": c - 0.5 * W * U(0.6, 0.95), "hi": c + 0.5 * W * U(0.6, 0.85)}
     if effect == "rate_limit":
-        return {"rate": W / (T * U(0.3, 1.5))}
+        # crossing the range in a fraction of a second (or a fraction of G's time constant, where
+        # that is slower still: a faster slew is invisible behind G) up to a minute
+        return {"rate": W / _log_uniform(rng, max(0.15 * T, 4 * b["dt"]), 60.0)}
     if effect == "input_deadzone":
         return {"delta": 0.5 * W * U(0.08, 0.2)}
     if effect == "curved_borders":
         sgn = rng.choice([-1.0, 1.0], 2)
-        return {"shape": str(rng.choice(["sine", "parabola"])), "range": [lo, hi],
-                "up": float(sgn[0] * U(0.04, 0.08)), "down": float(sgn[1] * U(0.04, 0.08))}
+        return {"shape": str(rng.choice(BOW_SHAPES)), "range": [lo, hi],
+                "up": float(sgn[0] * U(0.03, 0.09)), "down": float(sgn[1] * U(0.03, 0.09))}
     if effect == "time_delay":
-        return {"delay": T * U(0.1, 0.3)}
+        return {"delay": T * U(0.08, 0.4)}
     if effect == "resonance":
-        return {"omega_n": wc * U(3, 8), "zeta": U(0.03, 0.1)}
+        # anywhere above the band, up to a third of the Nyquist frequency
+        return {"omega_n": min(wc * _log_uniform(rng, 1.5, 15.0), np.pi / b["dt"] / 3), "zeta": U(0.02, 0.15)}
     if effect == "sensor_lag":
-        return {"tau": T * U(0.3, 1.0)}
+        # up to the plant's own slowest time constant
+        return {"tau": T * _log_uniform(rng, 0.2, 1.0)}
     if effect == "sensor_saturation":
         ylo, yhi = _y_range(b)
         m = max(abs(ylo), abs(yhi)) * U(0.65, 0.85)
@@ -238,7 +251,10 @@ def rig(u, dt):
 '''
 
 
-def generate(out: Path, n_cases: int = 40, seed: int = 2024, recorded: bool = False) -> list[str]:
+def generate(out: Path, n_cases: int = 40, seed: int = 2024, recorded: bool = False,
+             effect: str | None = None) -> list[str]:
+    """The cases of ``seed``; with ``effect``, every case carries that effect (a development set
+    for one family: its labels are known, never a judged seed)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     ss = np.random.SeedSequence(seed)
@@ -247,6 +263,8 @@ def generate(out: Path, n_cases: int = 40, seed: int = 2024, recorded: bool = Fa
     outside = ["hysteretic_friction"] * 3 + ["gain_drift"] * 2 + ["second_nonlinearity"] * 2
     labels += outside
     labels = labels[:n_cases] if n_cases <= len(labels) else labels + list(rng.choice(CATALOGUE, n_cases - len(labels)))
+    if effect is not None:
+        labels = [effect] * n_cases
     rng.shuffle(labels)
     bases = list(BASES)
     sealed = {}
@@ -307,5 +325,8 @@ if __name__ == "__main__":
     ap.add_argument("--seed", type=int, default=2024)
     ap.add_argument("--recorded", action="store_true",
                     help="also write lab.csv (one ordinary lab run of each rig) and recorded.yaml per case")
+    ap.add_argument("--effect", choices=CATALOGUE + OUTSIDE + ["none"],
+                    help="development only: every case carries this effect (the labels are then known)")
     a = ap.parse_args()
-    print(f"{len(generate(Path(a.out), a.cases, a.seed, a.recorded))} cases in {a.out} (labels sealed in sealed.json)")
+    print(f"{len(generate(Path(a.out), a.cases, a.seed, a.recorded, a.effect))} cases in {a.out} "
+          "(labels sealed in sealed.json)")

@@ -53,13 +53,29 @@ def _gear(u, p, st):
 
 
 def _bow(u, bow, side):
-    """A border bent by a sine bow over the working range, or by a parabola, as the case says."""
+    """A border bent over the working range (``s`` from 0 to 1 across it), shaped as the case says:
+    a sine bow, a parabola, an odd cubic, an S-curve (tanh), one-sided stiffening (an exponential
+    rising at one end) or a local bump (a Gaussian at a third of the range); each of unit size at
+    its largest within the range, times ``k`` and the range's width."""
     k = bow[side]
     lo, hi = bow["range"]
     s = (u - lo) / (hi - lo)
-    if bow["shape"] == "sine":
-        return k * (hi - lo) * np.sin(np.pi * s)
-    return k * (hi - lo) * (2 * s - 1) ** 2
+    shape = bow["shape"]
+    if shape == "sine":
+        f = np.sin(np.pi * s)
+    elif shape == "parabola":
+        f = (2 * s - 1) ** 2
+    elif shape == "cubic":
+        f = (2 * s - 1) ** 3
+    elif shape == "s_curve":
+        f = np.tanh(3.0 * (2 * s - 1)) / np.tanh(3.0)
+    elif shape == "one_sided":
+        f = np.expm1(3.0 * s) / np.expm1(3.0)
+    elif shape == "bump":
+        f = np.exp(-((s - 1.0 / 3.0) / 0.2) ** 2)
+    else:
+        raise ValueError(f"unknown bow shape {shape!r}")
+    return k * (hi - lo) * f
 
 
 def _lti(num, den, x, dt, method="zoh", start=None):

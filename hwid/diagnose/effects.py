@@ -55,6 +55,8 @@ class Scale:
         Longest experiment, s.
     y_obs_min, y_obs_max : float
         Range of the plant's measured output over the scored samples (NaN: unknown).
+    u_fit_min, u_fit_max : float
+        Range of the plant input over the fit experiments (NaN: that of every experiment).
     """
 
     dt: float
@@ -68,6 +70,8 @@ class Scale:
     duration_s: float
     y_obs_min: float = float("nan")
     y_obs_max: float = float("nan")
+    u_fit_min: float = float("nan")
+    u_fit_max: float = float("nan")
 
     @property
     def u_width(self) -> float:
@@ -263,6 +267,11 @@ class Effect:
         """Which parameters are fitted on a log scale."""
         return (False,) * len(self.params)
 
+    def grow(self, theta) -> tuple["Effect", np.ndarray] | None:
+        """For a family of nested effects (a degree chosen from the data): the next member and
+        ``theta`` (this member's fitted parameters) in its parameters; None for a single effect."""
+        return None
+
     def at_defining_bound(self, theta) -> bool:
         """Whether the fit pressed against a bound that defines the effect (a "lightly damped"
         mode at the largest damping allowed): it then stands in for something else."""
@@ -322,8 +331,13 @@ class RateLimit(Effect):
     def log_params(self):
         return (True, False)
 
+    #: the slowest actuator considered crosses the input range in this long at least, s (a real
+    #: rig's may take a minute), or in 20 settling times of G where that is longer
+    SLOWEST_CROSSING_S = 120.0
+
     def bounds(self, sc):
-        return np.array([sc.u_width / (20 * sc.settle_s), 0.0]), np.array([sc.u_width / sc.dt, 1.0])
+        slow = max(20 * sc.settle_s, self.SLOWEST_CROSSING_S)
+        return np.array([sc.u_width / slow, 0.0]), np.array([sc.u_width / sc.dt, 1.0])
 
     def starts(self, sc):
         lo, hi = self.bounds(sc)
@@ -382,32 +396,71 @@ class InputDeadzone(Effect):
 
 class CurvedBorders(Effect):
     """Each border of F becomes a curve: its straight line plus
-    ``k (c0 + c1 P1(s) + c2 P2(s) + c3 P3(s) + c4 P4(s))``, Legendre polynomials of ``s``, the
-    input scaled to [-1, 1] over the experiments' range, ``k`` the border's scale (slope x
+    ``k (c0 + c1 P1(s) + ... + cK PK(s))``, Legendre polynomials of ``s`` (the input scaled to
+    [-1, 1] over the experiments' range) up to the degree ``K``, ``k`` the border's scale (slope x
     half-range). ``c0`` (shared) and ``c1`` re-estimate the straight part the curve is measured
     against (a model's straight border is the best line through a curved one, not the curve's
     chord); the shift is shared by both borders so the curve never widens or narrows the play as a
-    whole (that is a different backlash, or friction elsewhere)."""
+    whole (that is a different backlash, or friction elsewhere).
 
-    def __init__(self):
+    A real border bends in any smooth shape (a bow, an S, stiffening at one end, a local bump), so
+    the degree is the data's choice: the fitter starts at :attr:`DEGREES`' first and moves to the
+    next (:meth:`grow`, started from the fit so far) while an information criterion on the fit
+    experiments improves (:meth:`hwid.diagnose.rank.EffectFitter.fit`). Beyond the fit
+    experiments' input range the bend goes on along its tangent at the range's end: the data say
+    nothing of it there, and a polynomial's own continuation runs away (an S-shaped bend on the
+    paper's plant, fitted to 4x the floor, left 85x on validation levels 15 % further out)."""
+
+    #: the degrees tried, in order (each fit starts from the one before); beyond 6 the terms are
+    #: ill-determined by a diagnosis's levels (degree 8 pressed its bounds on a tanh bend)
+    DEGREES = (2, 4, 6)
+
+    def __init__(self, degree: int = 2):
+        k = int(degree)
         super().__init__("curved_borders", "input",
-                         ("c0",) + tuple(f"c{k}_{side}" for side in ("up", "down") for k in range(1, 5)),
+                         ("c0",) + tuple(f"c{j}_{side}" for side in ("up", "down") for j in range(1, k + 1)),
                          "the borders of F are curves instead of straight lines", interacts=("d_plus", "d_minus"))
+        object.__setattr__(self, "degree", k)
 
     def bounds(self, sc):
-        return np.full(9, -0.4), np.full(9, 0.4)
+        n = len(self.params)
+        return np.full(n, -0.4), np.full(n, 0.4)
 
     def starts(self, sc):
-        out = [np.zeros(9)]
+        """Straight borders, and both bowed either way (the second Legendre term)."""
+        n, k = len(self.params), self.degree
+        out = [np.zeros(n)]
         for c in (0.05, -0.05):
-            z = np.zeros(9)
-            z[[2, 6]] = c
+            z = np.zeros(n)
+            z[[2, 2 + k]] = c
             out.append(z)
         return out
 
-    @staticmethod
-    def _bend(s, c):
-        return np.polynomial.legendre.legval(s, c)
+    def grow(self, theta) -> tuple["CurvedBorders", np.ndarray] | None:
+        """The next degree of :attr:`DEGREES` and ``theta`` (this degree's fit) in its parameters,
+        the new terms zero; None at the last."""
+        later = [d for d in self.DEGREES if d > self.degree]
+        if not later:
+            return None
+        e = CurvedBorders(later[0])
+        object.__setattr__(e, "_scale", self._scale)
+        object.__setattr__(e, "_fit_span", self._fit_span)
+        th = np.asarray(theta, float)
+        k, k2 = self.degree, e.degree
+        out = np.zeros(len(e.params))
+        out[0] = th[0]
+        out[1:1 + k] = th[1:1 + k]
+        out[1 + k2:1 + k2 + k] = th[1 + k:1 + 2 * k]
+        return e, out
+
+    def _bend(self, s, c):
+        """``sum c_j P_j(s)`` over the fit span, continued along its tangent beyond it."""
+        leg = np.polynomial.legendre
+        a, b = self._fit_span
+        inside = np.clip(s, a, b)
+        out = leg.legval(inside, c)
+        d = leg.legder(c)
+        return out + leg.legval(a, d) * np.minimum(s - a, 0.0) + leg.legval(b, d) * np.maximum(s - b, 0.0)
 
     def simulate(self, sim, theta, i):
         F = sim.model.input
@@ -415,22 +468,28 @@ class CurvedBorders(Effect):
         sc = self._scale
         s = (u - sc[0]) / sc[1]
         th = np.asarray(theta, float)
+        k = self.degree
+        c_up, c_dn = np.r_[th[0], th[1:1 + k]], np.r_[th[0], th[1 + k:1 + 2 * k]]
         if F.type == "backlash":
-            up = F.ascending(u) + F.slope_up * sc[1] * self._bend(s, np.r_[th[0], th[1:5]])
-            dn = F.descending(u) + F.slope_down * sc[1] * self._bend(s, np.r_[th[0], th[5:]])
+            up = F.ascending(u) + F.slope_up * sc[1] * self._bend(s, c_up)
+            dn = F.descending(u) + F.slope_down * sc[1] * self._bend(s, c_dn)
             v0 = float(np.clip(0.0, up[0], dn[0])) if dn[0] >= up[0] else 0.5 * (up[0] + dn[0])
             v = _play_arrays(np.ascontiguousarray(up), np.ascontiguousarray(np.maximum(dn, up)), v0)
         else:
-            up = F.ascending(u) + sc[1] / F.slope_up * self._bend(s, np.r_[th[0], th[1:5]])
-            dn = F.descending(u) + sc[1] / F.slope_down * self._bend(s, np.r_[th[0], th[5:]])
+            up = F.ascending(u) + sc[1] / F.slope_up * self._bend(s, c_up)
+            dn = F.descending(u) + sc[1] / F.slope_down * self._bend(s, c_dn)
             v = _direction_arrays(u, np.ascontiguousarray(up), np.ascontiguousarray(dn), 0.5 * (up[0] + dn[0]))
         return sim.from_v(v)
 
-    _scale = (0.0, 1.0)
+    _scale = (0.0, 1.0)              # centre and half-width of the input range: s = (u - centre) / half-width
+    _fit_span = (-np.inf, np.inf)    # the fit experiments' input range in s
 
     def with_scale(self, sc: Scale) -> "CurvedBorders":
-        e = CurvedBorders()
-        object.__setattr__(e, "_scale", (0.5 * (sc.u_min + sc.u_max), 0.5 * sc.u_width))
+        e = CurvedBorders(self.degree)
+        centre, half = 0.5 * (sc.u_min + sc.u_max), 0.5 * sc.u_width
+        object.__setattr__(e, "_scale", (centre, half))
+        if np.isfinite(sc.u_fit_min) and np.isfinite(sc.u_fit_max) and sc.u_fit_max > sc.u_fit_min:
+            object.__setattr__(e, "_fit_span", ((sc.u_fit_min - centre) / half, (sc.u_fit_max - centre) / half))
         return e
 
 

@@ -65,7 +65,7 @@ def propose(fitter, members, effects: dict, design, sigma: float, kappa: float) 
     indistinguishable group, each with its fitted ``theta``) in the least rig time."""
     best = None
     for name, frag, inputs, scored in candidates(design):
-        preds = [fitter.predict_on(effects[c.effect], c.theta, inputs) for c in members]
+        preds = [fitter.predict_on(c.fitted or effects[c.effect], c.theta, inputs) for c in members]
         n_scored = int(sum(int(m.sum()) for m in scored))
         seconds = sum(u.size for u in inputs) * design.dt
         deltas = {}

@@ -401,11 +401,40 @@ class EffectFitter:
 
     # ------------------------------------------------------------------------------------ fitting
     def fit(self, eff: effect_models.Effect) -> Candidate:
+        """The effect fitted on the fit experiments and scored on the validation ones. A family of
+        nested effects (:meth:`Effect.grow`: a bend's degree) grows while the fit experiments'
+        criterion :meth:`fit_criterion` improves, each member started from the one before."""
         if eff.disturbance:
             return self._fit_drift(eff)
+        best = self._fit_one(eff)
+        while True:
+            nxt = eff.grow(best.theta[:len(eff.params)])
+            if nxt is None:
+                return best
+            bigger, own = nxt
+            cand = self._fit_one(bigger, [np.r_[own, best.theta[len(eff.params):]]])
+            if self.fit_criterion(cand) >= self.fit_criterion(best):
+                return best
+            eff, best = bigger, cand
+
+    @property
+    def n_eff_fit(self) -> float:
+        """Independent samples of the fit data (``n / kappa``, at least 2)."""
+        return max(self.n_fit / self.kappa, 2.0)
+
+    def fit_criterion(self, c: Candidate) -> float:
+        """BIC of a candidate on the fit experiments, ``n_eff ln(gap_fit^2) + k ln(n_eff)`` (its own
+        parameters counted; the model's are every candidate's)."""
+        n = self.n_eff_fit
+        return float(n * np.log(max(c.gap_fit ** 2, 1e-300)) + c.k * np.log(n))
+
+    def _fit_one(self, eff: effect_models.Effect, starts=None) -> Candidate:
+        """One effect fitted (``starts``: full parameter vectors, the effect's and the model's, in
+        place of the effect's own grid) and scored."""
         lo, hi = eff.bounds(self.scale)
         logs = eff.log_params()
-        starts = eff.starts(self.scale)
+        given = starts is not None
+        starts = eff.starts(self.scale) if not given else starts
         if eff.name == "resonance" and self.modes:    # the modes taken out of G
             starts = list(starts) + [np.array(m, float) for m in self.modes]
         if eff.name == "time_delay" and self.delay_hint > 0:   # the excess phase taken out
@@ -414,7 +443,8 @@ class EffectFitter:
             glo, ghi = self._g_bounds()
             lo, hi = np.r_[lo, glo], np.r_[hi, ghi]
             logs = tuple(logs) + (False,) * self.n_g
-            starts = [np.r_[np.asarray(th, float), self.g_p] for th in starts]
+            if not given:
+                starts = [np.r_[np.asarray(th, float), self.g_p] for th in starts]
         costs = []
         for th in starts:
             th = np.clip(th, lo, hi)
@@ -422,7 +452,7 @@ class EffectFitter:
             costs.append((float(r @ r), th))
         n_res = r.size
         costs.sort(key=lambda c: c[0])
-        if self.refit_g and np.any(self.g_p != 0):
+        if self.refit_g and np.any(self.g_p != 0) and not given:
             # the baseline's refit bends F and G towards what the model misses (borders shifted and
             # G slowed to mimic a rate limit): each effect is also started from the identified F and
             # G, with its three best own starts
@@ -571,6 +601,7 @@ class EffectFitter:
             c.model = self.model_dict(self.g_p if eff.disturbance else self._split(eff, theta)[1])
         c.at_bound = bool(eff.at_defining_bound(theta))
         c.theta = np.asarray(theta, float)
+        c.fitted = eff
         return c
 
     def predict_on(self, eff, theta, inputs) -> list[np.ndarray]:

@@ -26,6 +26,7 @@ class Candidate:
     model: dict | None = None      # F and G re-estimated with the effect (identified models)
     at_bound: bool = False         # pressed against a bound that defines the effect
     theta: np.ndarray | None = field(default=None, repr=False)   # the fit's parameters (effect's, then F's and G's)
+    fitted: object = field(default=None, repr=False)   # the Effect theta belongs to (a family at its chosen degree)
 
     def to_dict(self) -> dict:
         d = {"effect": self.effect, "params": self.params, "gap_after": self.gap_after,
