@@ -1,7 +1,9 @@
 """Simulation throughput: backlash (eq. 1) + G (eq. 3b, exact ZOH) + h (eq. 3c) + noise, in samples/s.
 
-Compares hwid's SimulatedPlant with a plain Python loop of the same chain (run on 2*10^5 samples
-and reported per sample). Single-threaded. Usage: ``.venv/bin/python benchmarks/bench_simulate.py``
+Times hwid's SimulatedPlant.run (the chain and its white noise, the Record) and the chain alone
+(HWModel.simulate, no noise), best of five, and a plain Python loop of the same chain with noise
+(run on 2*10^5 samples and reported per sample). Single-threaded.
+Usage: ``.venv/bin/python benchmarks/bench_simulate.py``
 """
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ import time
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
+import numba  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import linalg, signal  # noqa: E402
 
@@ -44,20 +47,28 @@ def plain_python(u):
     return y
 
 
+def best_of(f, repeats: int = 5) -> float:
+    """The shortest of ``repeats`` wall times of ``f()``, in seconds."""
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        f()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
 def main():
-    print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-          f"numpy {np.__version__}; single-threaded")
+    print(f"machine: {platform.platform()}, {platform.machine()}, {os.cpu_count()} cores, Python "
+          f"{platform.python_version()}, numpy {np.__version__}, numba {numba.__version__}; single-threaded")
     plant = SimulatedPlant(MODEL, DT, noise_std=0.01, seed=0)
     plant.run("warmup", np.sin(np.arange(1000) * 0.01))           # numba compile / cache load
-    print(f"{'samples':>10} {'hwid s':>8} {'hwid samples/s':>15}")
+    MODEL.simulate(np.sin(np.arange(1000) * 0.01), DT)
+    print(f"{'samples':>10} {'run s':>8} {'with noise /s':>14} {'chain s':>8} {'chain alone /s':>15}")
     for n in (10**6, 10**7):
         u = 1.5 * np.sin(np.arange(n) * DT * 0.2)
-        best = np.inf
-        for _ in range(3):
-            t0 = time.perf_counter()
-            plant.run("bench", u)
-            best = min(best, time.perf_counter() - t0)
-        print(f"{n:>10.0e} {best:8.3f} {n / best:15.3e}")
+        t_run = best_of(lambda: plant.run("bench", u))
+        t_chain = best_of(lambda: MODEL.simulate(u, DT))
+        print(f"{n:>10.0e} {t_run:8.3f} {n / t_run:14.3e} {t_chain:8.3f} {n / t_chain:15.3e}")
     n = 200_000
     u = 1.5 * np.sin(np.arange(n) * DT * 0.2)
     t0 = time.perf_counter()

@@ -106,13 +106,15 @@ class InputNonlinearity:
 
 @dataclass(frozen=True)
 class Signals:
-    """The chain's signals on one experiment (eqs. 3a-c without the noise): ``v = F[u]``,
-    ``w = G * v``, ``x = h(w)``; ``gear`` is F's state after the last sample (None if empty)."""
+    """The chain's signals on one experiment (eqs. 3a-c): ``v = F[u]``, ``w = G * v``, ``x = h(w)``;
+    ``gear`` is F's state after the last sample (None if empty); ``y = x + xi`` when
+    :meth:`HWModel.simulate` was given a noise generator, else None."""
 
     v: np.ndarray
     w: np.ndarray
     x: np.ndarray
     gear: float | None
+    y: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -127,20 +129,26 @@ class HWModel:
         k = self.input.scale * self.linear.dc_gain
         return HWModel(self.input.normalised(), self.linear.normalised(), self.output.scaled(k))
 
-    def simulate(self, u, dt: float, gear: float | None = None, rest: float | None = None) -> Signals:
+    def simulate(self, u, dt: float, gear: float | None = None, rest: float | None = None,
+                 noise_rng: np.random.Generator | None = None, noise_std: float = 0.0) -> Signals:
         """The F -> G -> h chain of eqs. (3a-c) on a sampled input: ``v = F[u]`` from the gear state
         ``gear`` (None: the operator's default start at ``u[0]``), ``w`` the exact ZOH response of
         G from rest at the input level ``rest`` (None: the equilibrium of ``v[0]``), ``x = h(w)``.
-        Every simulation of a model in hwid runs here."""
+        With ``noise_rng``, also ``y = x + xi``, xi white with standard deviation ``noise_std``:
+        bit-identical to ``x + noise_std * noise_rng.standard_normal(n)``, drawn in the chain's own
+        pass where it is fused. Every simulation of a model in hwid runs here."""
         u = np.ascontiguousarray(u, dtype=float)
-        fused = self._fused(u, dt, gear, rest)
+        fused = self._fused(u, dt, gear, rest, noise_rng, float(noise_std))
         if fused is not None:
             return fused
         v = self.input.apply(u, gear)
         w = self.linear.simulate(v, dt, rest)
-        return Signals(v, w, self.output(w), float(v[-1]) if v.size else gear)
+        x = self.output(w)
+        y = None if noise_rng is None else x + noise_std * noise_rng.standard_normal(u.size)
+        return Signals(v, w, x, float(v[-1]) if v.size else gear, y)
 
-    def _fused(self, u, dt: float, gear: float | None, rest: float | None) -> Signals | None:
+    def _fused(self, u, dt: float, gear: float | None, rest: float | None, noise_rng: np.random.Generator | None,
+               noise_std: float) -> Signals | None:
         """The chain in one pass (:func:`hwid.blocks.chain.run_chain`, bit-identical to the three
         passes) where it applies: no delay, a polynomial h, a G with states; else None."""
         f, g = self.input, self.linear
@@ -162,8 +170,13 @@ class HWModel:
         level = v0 if rest is None else float(rest)
         x0 = np.linalg.solve(np.eye(n_states) - Phi, (G1 + G0) * level)
         coef = np.ascontiguousarray(self.output.coefficients, dtype=float)
-        v, w, x = run_chain(u, *args, Phi, G1, G0, C, D, x0, coef)
-        return Signals(v, w, x, float(v[-1]))
+        # one allocation for the signals: at 10^6 samples malloc hands the block of the last
+        # experiment back whole, where four 8 MB arrays go back to the system and fault in anew
+        sig = np.empty((3 if noise_rng is None else 4, u.size))
+        v, w, x = sig[0], sig[1], sig[2]
+        y = sig[3] if noise_rng is not None else np.empty(0)
+        run_chain(u, *args, Phi, G1, G0, C, D, x0, coef, noise_rng, noise_std, v, w, x, y)
+        return Signals(v, w, x, float(v[-1]), None if noise_rng is None else y)
 
     def staircase_steady(self, lead_in, levels) -> np.ndarray:
         """``X_j = h(G(0) F[U_j])`` at each level of a staircase after its lead-in (eqs. 5, 8a-b)."""

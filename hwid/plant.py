@@ -4,7 +4,8 @@
   experiment to the next, like a rig), ``w = G * v`` from the equilibrium of the first sample,
   ``x = h(w)``, ``y = x + xi``. The noise of each experiment comes from its own ``Generator``,
   spawned from the run's ``SeedSequence`` and the experiment's name, so results do not depend on the
-  order experiments are run in.
+  order experiments are run in. White noise is drawn inside the chain's own pass
+  (:func:`hwid.blocks.chain.run_chain`), bit-identical to :func:`noise` added to x afterwards.
 * :class:`ExternalPlant` calls ``function(u, dt) -> y`` named by ``plant.callable`` once per
   experiment, checks what it returns, and journals every call's (u, y) to disk at once, so a rerun
   reuses recorded rig time instead of repeating it.
@@ -89,11 +90,16 @@ class SimulatedPlant:
 
     def run(self, name: str, u, z=None) -> Record:
         u = np.ascontiguousarray(u, dtype=float)
-        sig = self.model.simulate(u, self.dt, self.state)
+        rng = experiment_rng(self.seed_seq, name)
+        white = self.noise_std != 0.0 and self.noise_ar == 0.0     # drawn in the chain's own pass
+        sig = self.model.simulate(u, self.dt, self.state, noise_rng=rng if white else None, noise_std=self.noise_std)
         self.state = sig.gear
         v, w, x = sig.v, sig.w, sig.x
-        y = noise(experiment_rng(self.seed_seq, name), u.size, self.noise_std, self.noise_ar)
-        y += x              # in place; the same sum as x + noise
+        if white:
+            y = sig.y
+        else:
+            y = noise(rng, u.size, self.noise_std, self.noise_ar)
+            y += x          # in place; the same sum as x + noise
         self.calls += 1
         if not np.all(np.isfinite(y)):
             raise HwidError(f"simulating experiment '{name}' gave NaN or inf (first at sample "

@@ -8,20 +8,26 @@ from numba import njit
 
 
 @njit(cache=True)
-def _horner(w, c):
-    # blocked so the inner loop runs over samples (SIMD) while the block stays in L1 cache
-    n = w.shape[0]
+def horner_into(w, c, out):
+    """``out = sum_i c_i w^i`` by Horner's rule, the inner loop over the samples (SIMD); called on
+    blocks of a few thousand samples, which stay in the L1 cache over the passes."""
     m = c.shape[0]
+    n = w.shape[0]
+    for k in range(n):
+        out[k] = c[m - 1]
+    for i in range(m - 2, -1, -1):
+        ci = c[i]
+        for k in range(n):
+            out[k] = out[k] * w[k] + ci
+
+
+@njit(cache=True)
+def _horner(w, c):
+    n = w.shape[0]
     out = np.empty(n)
-    B = 2048
-    for s in range(0, n, B):
-        e = min(s + B, n)
-        for k in range(s, e):
-            out[k] = c[m - 1]
-        for i in range(m - 2, -1, -1):
-            ci = c[i]
-            for k in range(s, e):
-                out[k] = out[k] * w[k] + ci
+    for s in range(0, n, 2048):
+        e = min(s + 2048, n)
+        horner_into(w[s:e], c, out[s:e])
     return out
 
 
