@@ -196,6 +196,10 @@ class ModelSim:
     all of it).
     """
 
+    #: the gear's start is looked for on this many points across the play, then as many again
+    #: across the best one's neighbours
+    GEAR_POINTS = 9
+
     def __init__(self, model: HWModel, dt: float, inputs, u_before=None, lead=None):
         self.model = model
         self.dt = float(dt)
@@ -203,6 +207,7 @@ class ModelSim:
         self.u_before = ([None if b is None else np.ascontiguousarray(b, float) for b in u_before]
                          if u_before is not None else None)
         self.lead = list(lead) if lead is not None else None
+        self.measured = None
         self.v = [model.input.apply(u) for u in self.inputs]
         self.w = [simulate_linear(model.linear, v, self.dt) for v in self.v]
         self.x = [model.output(w) for w in self.w]
@@ -213,13 +218,66 @@ class ModelSim:
         new = object.__new__(ModelSim)
         new.model = HWModel(self.model.input, self.model.linear, h)
         new.dt, new.inputs, new.v, new.w = self.dt, self.inputs, self.v, self.w
-        new.u_before, new.lead = self.u_before, self.lead
+        new.u_before, new.lead, new.measured = self.u_before, self.lead, self.measured
         new.x = [h(w) for w in self.w]
         return new
 
+    def measure(self, ys, masks, h) -> "ModelSim":
+        """Attach the measured outputs, their scored samples and the output nonlinearity ``h`` to
+        compare them through (:meth:`gear_start`); returns self."""
+        self.measured = ([np.asarray(y, float) for y in ys], [np.asarray(m, bool) for m in masks], h)
+        return self
+
     def from_input(self, u, F: InputNonlinearity | None = None, i: int | None = None) -> np.ndarray:
-        v = (F or self.model.input).apply(u)
-        return self.from_v(v)
+        """The chain after an input effect: ``u`` the actuator's output on experiment ``i`` (the
+        gear's start from the data where ``u`` leaves it open, :meth:`gear_start`)."""
+        F = F or self.model.input
+        return self.from_v(F.apply(u, None if i is None else self.gear_start(u, i, F)))
+
+    def gear_start(self, u, i: int, F: InputNonlinearity | None = None) -> float | None:
+        """The gear's position before ``u[0]`` (``u`` the actuator's output on experiment ``i``)
+        that fits the measured output best, where ``u`` has not crossed the play by the first
+        scored sample; None where it has, for a Backlash-Inverse (its output follows the input's
+        first move) or with nothing measured (:meth:`measure`).
+
+        A rig may start a call with its gear anywhere in the play (parked, homed, left mid-move),
+        and every lead-in crosses the play to put it against a known border -- but an effect of
+        the actuator may keep it from doing so (a slow actuator turns back before it gets across).
+        Started anywhere in the play, a backlash's output is ``clip(g0, v_lo, v_hi)`` with
+        ``v_lo, v_hi`` its outputs from the play's two ends at ``u[0]``: one number per
+        experiment, a nuisance parameter like the initial state ``hwid compare`` estimates."""
+        F = F or self.model.input
+        meas = self.measured
+        if meas is None or F.type != "backlash" or u.size == 0:
+            return None
+        y, m, h = meas[0][i], meas[1][i], meas[2]
+        if not m.any():
+            return None
+        lo, hi = float(F.ascending(u[0])), float(F.descending(u[0]))
+        v_lo, v_hi = F.apply(u, lo), F.apply(u, hi)
+        first = int(np.argmax(m))
+        still = np.flatnonzero(v_hi - v_lo > 1e-9 * max(hi - lo, 1e-12))
+        if not still.size or still[-1] < first:
+            return None
+        G = self.model.linear
+        p = G.poles()
+        slow = float(np.min(np.abs(p.real))) if p.size else np.inf
+        settle = int(np.ceil((4.0 / slow + G.delay) / self.dt)) if np.isfinite(slow) and slow > 0 else 0
+        stop = min(u.size, int(still[-1]) + 1 + settle)
+        sel = m[:stop]
+        ys = y[:stop][sel]
+
+        def cost(g0):
+            v = np.clip(g0, v_lo[:stop], v_hi[:stop])
+            r = ys - h(simulate_linear(G, v, self.dt))[sel]
+            return float(r @ r)
+
+        grid = np.linspace(lo, hi, self.GEAR_POINTS)
+        costs = [cost(g) for g in grid]
+        k = int(np.argmin(costs))
+        fine = np.linspace(grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)], self.GEAR_POINTS)
+        fine_costs = [cost(g) for g in fine]
+        return float(fine[int(np.argmin(fine_costs))])
 
     def before(self, i: int):
         """The input the plant received before experiment ``i`` (None if unknown)."""
@@ -310,7 +368,7 @@ class InputSaturation(Effect):
         return _grid(np.linspace(lo[0], lo[1], 7)[:-1], np.linspace(hi[0], hi[1], 7)[1:])
 
     def simulate(self, sim, theta, i):
-        return sim.from_input(np.clip(sim.inputs[i], theta[0], theta[1]))
+        return sim.from_input(np.clip(sim.inputs[i], theta[0], theta[1]), i=i)
 
 
 class RateLimit(Effect):
@@ -345,14 +403,21 @@ class RateLimit(Effect):
 
     def simulate(self, sim, theta, i):
         u, c, prev = sim.inputs[i], float(theta[1]), sim.before(i)
-        fresh = sim.from_input(rate_limited(u, theta[0], sim.dt))
+        fresh = sim.from_input(rate_limited(u, theta[0], sim.dt), i=i)
         if c <= 0 or prev is None or not prev.size:
             return fresh
-        # the actuator through the whole session before, and the chain after it from where the
-        # actuator last crossed the play both ways (before that, nothing it did is remembered)
+        # the actuator through the whole session before; the gear from the data where this call's
+        # moves leave its start open (the rig may have parked it between calls), else the chain
+        # from where the actuator last crossed the play both ways (before that, nothing it did is
+        # remembered)
         act = rate_limited(np.concatenate([prev, u]), theta[0], sim.dt)
-        k = max(sim.lead_samples(i), _since_crossed(act[:prev.size], sim.model.input))
-        carried = sim.from_input(act[prev.size - k:])[k:]
+        call = act[prev.size:]
+        g0 = sim.gear_start(call, i)
+        if g0 is not None:
+            carried = sim.from_v(sim.model.input.apply(call, g0))
+        else:
+            k = max(sim.lead_samples(i), _since_crossed(act[:prev.size], sim.model.input))
+            carried = sim.from_input(act[prev.size - k:])[k:]
         return fresh + c * (carried - fresh)
 
 
@@ -391,7 +456,7 @@ class InputDeadzone(Effect):
             dp = dm = 0.5 * (dp + dm)
             dp += 1e-9
         F2 = InputNonlinearity(F.type, F.slope_up, F.slope_down, dp, dm)
-        return sim.from_input(deadzone(sim.inputs[i], delta), F2)
+        return sim.from_input(deadzone(sim.inputs[i], delta), F2, i)
 
 
 class CurvedBorders(Effect):

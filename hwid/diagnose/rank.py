@@ -94,6 +94,9 @@ class EffectFitter:
         self.mf, self.mv = [np.asarray(m, bool) for m in m_fit], [np.asarray(m, bool) for m in m_val]
         self.names_val = list(names_val)
         self.scale = scale
+        # the measured outputs, for the gear's start where an effect leaves it open (ModelSim.gear_start)
+        sim_fit.measure(self.yf, self.mf, sim_fit.model.output)
+        sim_val.measure(self.yv, self.mv, sim_val.model.output)
         self.band = band
         self.sigma, self.kappa = float(sigma), float(kappa)
         n = sum(int(m.sum()) for m in self.mf)
@@ -652,6 +655,7 @@ class _GSim(effect_models.ModelSim):
         self.dt, self.inputs = base.dt, base.inputs
         self.u_before = getattr(base, "u_before", None)
         self.lead = getattr(base, "lead", None)
+        self.measured = getattr(base, "measured", None)
         self._v = self._w = self._x = None
 
     @property
