@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 from scipy.ndimage import uniform_filter1d
+from scipy.optimize import minimize_scalar
 
 
 
@@ -196,8 +197,7 @@ class ModelSim:
     all of it).
     """
 
-    #: the gear's start is looked for on this many points across the play, then as many again
-    #: across the best one's neighbours
+    #: a nuisance start is looked for on this many points across its range first
     GEAR_POINTS = 9
 
     def __init__(self, model: HWModel, dt: float, inputs, u_before=None, lead=None):
@@ -222,10 +222,11 @@ class ModelSim:
         new.x = [h(w) for w in self.w]
         return new
 
-    def measure(self, ys, masks, h) -> "ModelSim":
-        """Attach the measured outputs, their scored samples and the output nonlinearity ``h`` to
-        compare them through (:meth:`gear_start`); returns self."""
-        self.measured = ([np.asarray(y, float) for y in ys], [np.asarray(m, bool) for m in masks], h)
+    def measure(self, ys, masks, h, sigma: float) -> "ModelSim":
+        """Attach the measured outputs, their scored samples, the output nonlinearity ``h`` to
+        compare them through and the noise floor ``sigma`` (:meth:`gear_start`,
+        :meth:`rest_level`); returns self."""
+        self.measured = ([np.asarray(y, float) for y in ys], [np.asarray(m, bool) for m in masks], h, float(sigma))
         return self
 
     def from_input(self, u, F: InputNonlinearity | None = None, i: int | None = None) -> np.ndarray:
@@ -272,12 +273,58 @@ class ModelSim:
             r = ys - h(simulate_linear(G, v, self.dt))[sel]
             return float(r @ r)
 
+        return self._search(cost, lo, hi)
+
+    def _search(self, cost, lo: float, hi: float) -> float:
+        """The minimiser of ``cost`` over [lo, hi]: a grid, then Brent's bounded search across the
+        best point's neighbours (to 1e-6 of the range)."""
         grid = np.linspace(lo, hi, self.GEAR_POINTS)
-        costs = [cost(g) for g in grid]
-        k = int(np.argmin(costs))
-        fine = np.linspace(grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)], self.GEAR_POINTS)
-        fine_costs = [cost(g) for g in fine]
-        return float(fine[int(np.argmin(fine_costs))])
+        k = int(np.argmin([cost(g) for g in grid]))
+        a, b = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
+        if b <= a:
+            return float(grid[k])
+        sol = minimize_scalar(cost, bounds=(a, b), method="bounded", options={"xatol": 1e-6 * (hi - lo)})
+        return float(sol.x) if sol.fun <= cost(grid[k]) else float(grid[k])
+
+    @property
+    def v_span(self) -> tuple[float, float]:
+        """The range of F's output over every experiment (the working range G may rest anywhere in)."""
+        if getattr(self, "_v_span", None) is None:
+            vs = [np.asarray(v) for v in self.v if len(v)]
+            self._v_span = ((min(float(v.min()) for v in vs), max(float(v.max()) for v in vs)) if vs
+                            else (0.0, 0.0))
+        return self._v_span
+
+    def rest_level(self, v, i: int, G: LinearBlock, w) -> np.ndarray | None:
+        """``w`` (G's response to ``v`` on experiment ``i`` from rest at ``v[0]``) restarted from
+        rest at the level that fits the measured output best, where that level still shows at the
+        scored samples (by more than a tenth of the noise floor between the ends of ``v``'s
+        range); None where it does not or with nothing measured (:meth:`measure`).
+
+        A rig may start a call with G anywhere (left mid-move); every lead-in holds until the
+        model's G has settled from any state, but an effect that slows G (a lightly damped mode)
+        may ring longer. By superposition, G from rest at ``L`` gives ``w + (L - v[0]) f``, with
+        ``f`` its response to a unit rest and no input: one number per experiment, a nuisance
+        parameter like :meth:`gear_start`."""
+        meas = self.measured
+        if meas is None or v.size == 0:
+            return None
+        y, m, h, sigma = meas[0][i], meas[1][i], meas[2], meas[3]
+        if not m.any():
+            return None
+        lo, hi = self.v_span
+        lo, hi = min(lo, float(np.min(v))), max(hi, float(np.max(v)))
+        d = G.simulate(np.zeros(v.size), self.dt, 1.0)      # f: from rest at 1, no input
+        x_lo, x_hi = h(w + (lo - v[0]) * d), h(w + (hi - v[0]) * d)
+        if not np.any(np.abs(x_hi - x_lo)[m] > 0.1 * sigma):
+            return None
+        ys = y[m]
+
+        def cost(level):
+            r = ys - h(w + (level - v[0]) * d)[m]
+            return float(r @ r)
+
+        return w + (self._search(cost, lo, hi) - v[0]) * d
 
     def before(self, i: int):
         """The input the plant received before experiment ``i`` (None if unknown)."""
@@ -291,8 +338,15 @@ class ModelSim:
         n = 0 if prev is None else prev.size
         return n if lead is None or lead[i] is None else min(int(lead[i]), n)
 
-    def from_v(self, v, G: LinearBlock | None = None) -> np.ndarray:
-        return self.model.output(simulate_linear(G or self.model.linear, v, self.dt))
+    def from_v(self, v, G: LinearBlock | None = None, i: int | None = None) -> np.ndarray:
+        """``h(G * v)``; with ``i``, G's starting level on experiment ``i`` from the data where it
+        still shows (:meth:`rest_level`)."""
+        G = G or self.model.linear
+        w = simulate_linear(G, v, self.dt)
+        if i is not None:
+            w2 = self.rest_level(v, i, G, w)
+            w = w if w2 is None else w2
+        return self.model.output(w)
 
 
 # ------------------------------------------------------------------------------------------ effects
@@ -608,7 +662,7 @@ class Resonance(Effect):
         wn, z = float(theta[0]), float(theta[1])
         den = np.polymul(G.den, [1.0, 2 * z * wn, wn * wn])
         num = np.polymul(G.num, [wn * wn])
-        return sim.from_v(sim.v[i], LinearBlock(tuple(num), tuple(den), G.delay))
+        return sim.from_v(sim.v[i], LinearBlock(tuple(num), tuple(den), G.delay), i)
 
 
 class SensorLag(Effect):

@@ -95,8 +95,8 @@ class EffectFitter:
         self.names_val = list(names_val)
         self.scale = scale
         # the measured outputs, for the gear's start where an effect leaves it open (ModelSim.gear_start)
-        sim_fit.measure(self.yf, self.mf, sim_fit.model.output)
-        sim_val.measure(self.yv, self.mv, sim_val.model.output)
+        sim_fit.measure(self.yf, self.mf, sim_fit.model.output, sigma)
+        sim_val.measure(self.yv, self.mv, sim_val.model.output, sigma)
         self.band = band
         self.sigma, self.kappa = float(sigma), float(kappa)
         n = sum(int(m.sum()) for m in self.mf)

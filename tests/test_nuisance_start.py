@@ -1,0 +1,63 @@
+"""The diagnosis's nuisance starts (``ModelSim.gear_start``, ``ModelSim.rest_level``) against known
+truth: a rig started with its gear somewhere in the play, or with G at rest at some level, that
+the experiment's moves do not reveal before the scored samples."""
+from __future__ import annotations
+
+import numpy as np
+
+from hwid.blocks.linear import LinearBlock
+from hwid.blocks.static import PolynomialH
+from hwid.diagnose.effects import ModelSim
+from hwid.model import HWModel, InputNonlinearity
+
+DT = 0.05
+F = InputNonlinearity("backlash", 1.0, 1.0, 0.4, -0.4)
+G = LinearBlock((1.0,), (1.0, 1.0))
+H = PolynomialH((0.0, 1.0, 0.0, -0.1))
+SIGMA = 0.01
+
+
+def _measured(u, v, w0_level=None, seed=0):
+    rng = np.random.default_rng(seed)
+    w = G.simulate(v, DT, w0_level)
+    return H(w) + SIGMA * rng.standard_normal(u.size)
+
+
+def test_gear_start_found_where_the_moves_leave_it_open():
+    """Moves of 0.3 inside a play of 0.8 never reach a border: the gear stays where it started
+    (0.25 above the lower border at u[0]), 0.15 from the model's default start."""
+    n = 4000
+    u = 0.15 * np.sin(2 * np.pi * np.arange(n) * DT / 20.0)
+    truth = float(F.ascending(u[0])) + 0.25
+    v = F.apply(u, truth)
+    y = _measured(u, v)
+    mask = np.arange(n) >= 400
+    sim = ModelSim(HWModel(F, G, H), DT, [u]).measure([y], [mask], H, SIGMA)
+    g0 = sim.gear_start(u, 0)
+    assert g0 is not None and abs(g0 - truth) < 0.005
+    r = (y - sim.from_input(u, i=0))[mask]
+    assert np.sqrt(np.mean(r ** 2)) < 1.1 * SIGMA
+    # once the input crosses the play before the scored samples, the start does not matter
+    u2 = np.concatenate([np.linspace(-1.0, 1.0, 400), np.full(n - 400, 1.0)])
+    assert ModelSim(HWModel(F, G, H), DT, [u2]).measure([y], [mask], H, SIGMA).gear_start(u2, 0) is None
+
+
+def test_rest_level_found_where_g_still_remembers_it():
+    """G (time constant 1 s) at rest at -0.6 before a call scored from 1 s on: the level shows for
+    about 5 time constants and is recovered; scored from 30 s on it no longer matters."""
+    n = 600
+    u = np.full(n, 0.8)
+    v = F.apply(u)
+    y = _measured(u, v, w0_level=-0.6)
+    other = np.linspace(-1.0, 1.0, 100)         # another experiment: the working range
+    sim = ModelSim(HWModel(F, G, H), DT, [u, other])
+    mask = np.arange(n) >= 20
+    sim.measure([y, H(other)], [mask, np.zeros(100, bool)], H, SIGMA)
+    w = sim.rest_level(v, 0, G, sim.w[0])
+    assert w is not None
+    r = (y - H(w))[mask]
+    assert np.sqrt(np.mean(r ** 2)) < 1.1 * SIGMA
+    assert abs(w[0] - G.dc_gain * -0.6) < 0.01
+    late = np.arange(n) >= 600 - 1
+    sim.measure([y, H(other)], [late, np.zeros(100, bool)], H, SIGMA)
+    assert sim.rest_level(v, 0, G, sim.w[0]) is None
