@@ -28,6 +28,7 @@ from scipy.optimize import minimize_scalar
 
 
 from hwid.blocks.linear import LinearBlock
+from hwid.diagnose.experiments import settling_time
 from hwid.model import HWModel, InputNonlinearity
 
 CATALOGUE = ("input_saturation", "rate_limit", "input_deadzone", "curved_borders", "time_delay",
@@ -188,7 +189,9 @@ class ModelSim:
     so an effect only recomputes the part of the chain after the stage it changes.
 
     Every experiment is simulated from the model's default initial state; the diagnosis
-    experiments start with a lead-in (excluded from every gap) that makes the state irrelevant.
+    experiments start with a lead-in (excluded from every gap) that makes the state irrelevant for
+    the model itself. Where an effect keeps the lead-in from doing so, the state is estimated from
+    the measured outputs attached by :meth:`measure` (:meth:`gear_start`, :meth:`rest_level`).
     ``u_before[i]`` is the input the plant received before experiment ``i`` (every experiment run
     before it, in order, or None): an actuator with memory (a rate limit) starts where that left
     it, not at the experiment's first sample, and may not reach the lead-in's far level in time;
@@ -261,10 +264,8 @@ class ModelSim:
         if not still.size or still[-1] < first:
             return None
         G = self.model.linear
-        p = G.poles()
-        slow = float(np.min(np.abs(p.real))) if p.size else np.inf
-        settle = int(np.ceil((4.0 / slow + G.delay) / self.dt)) if np.isfinite(slow) and slow > 0 else 0
-        stop = min(u.size, int(still[-1]) + 1 + settle)
+        settle = settling_time(self.model)
+        stop = min(u.size, int(still[-1]) + 1 + (int(np.ceil(settle / self.dt)) if np.isfinite(settle) else u.size))
         sel = m[:stop]
         ys = y[:stop][sel]
 
@@ -298,8 +299,8 @@ class ModelSim:
     def rest_level(self, v, i: int, G: LinearBlock, w) -> np.ndarray | None:
         """``w`` (G's response to ``v`` on experiment ``i`` from rest at ``v[0]``) restarted from
         rest at the level that fits the measured output best, where that level still shows at the
-        scored samples (by more than a tenth of the noise floor between the ends of ``v``'s
-        range); None where it does not or with nothing measured (:meth:`measure`).
+        scored samples (by more than a tenth of the noise floor between the ends of the working
+        range, :attr:`v_span`); None where it does not or with nothing measured (:meth:`measure`).
 
         A rig may start a call with G anywhere (left mid-move); every lead-in holds until the
         model's G has settled from any state, but an effect that slows G (a lightly damped mode)
