@@ -12,7 +12,7 @@ import yaml
 
 from hwid.blocks.linear import LinearBlock
 from hwid.blocks.static import PolynomialH
-from hwid.diagnose.effects import rate_limited
+from hwid.diagnose.modelsim import rate_limited
 from hwid.model import HWModel, InputNonlinearity
 
 DT = 0.02

@@ -441,7 +441,8 @@ def test_refit_baseline_without_the_slow_pair_leaves_noise():
     0.0131 rad/s and stopped there, and curved borders were named instead of the deadzone.)"""
     from hwid.blocks.linear import LinearBlock
     from hwid.blocks.static import PolynomialH
-    from hwid.diagnose.effects import ModelSim, Scale
+    from hwid.diagnose.effects import Scale
+    from hwid.diagnose.modelsim import ModelSim
     from hwid.diagnose.rank import EffectFitter
     from hwid.model import HWModel, InputNonlinearity
     dt, sigma = 0.5, 0.01

@@ -7,7 +7,7 @@ import numpy as np
 
 from hwid.blocks.linear import LinearBlock
 from hwid.blocks.static import PolynomialH
-from hwid.diagnose.effects import ModelSim
+from hwid.diagnose.modelsim import ModelSim
 from hwid.model import HWModel, InputNonlinearity
 
 DT = 0.05

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal
 
-from hwid.diagnose.effects import smooth
+from hwid.diagnose.modelsim import smooth
 from hwid.diagnose.experiments import REGIONS
 
 

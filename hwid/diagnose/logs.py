@@ -27,7 +27,8 @@ import numpy as np
 
 from hwid import HwidError
 from hwid.diagnose import experiments, gap
-from hwid.diagnose.effects import ModelSim, catalogue
+from hwid.diagnose.effects import catalogue
+from hwid.diagnose.modelsim import ModelSim
 from hwid.diagnose.next_experiment import propose
 from hwid.diagnose.run import Validation, _scale, conclude, drift_additivity
 from hwid.diagnose.sim_side import load_model

@@ -25,6 +25,7 @@ from scipy.optimize import least_squares
 from hwid.diagnose import effects as effect_models
 from hwid.diagnose.baseline import cancel_slow_pairs, mirror_rhp_zeros, split_modes
 from hwid.diagnose.gap import rms
+from hwid.diagnose.modelsim import ModelSim, simulate_linear
 from hwid.diagnose.verdict import Candidate, bic_score, explained_fraction, rank
 from hwid.model import InputNonlinearity
 
@@ -617,7 +618,7 @@ class EffectFitter:
             eff, theta = None, None
         dt = self.sf.dt
         if not self.refit_h:
-            sim = effect_models.ModelSim(self.sf.model, dt, inputs)
+            sim = ModelSim(self.sf.model, dt, inputs)
             return [sim.x[i] if eff is None else eff.simulate(sim, theta, i) for i in range(len(inputs))]
         c = self._h_coef(eff, theta, self._designs(eff, theta, "fit"))
         if self.refit_g:
@@ -625,7 +626,7 @@ class EffectFitter:
             F, G = self.input_nl(g), self.linear(g)
         else:
             own, F, G = theta, self.sfw.model.input, self.sfw.model.linear
-        simw = effect_models.ModelSim(HWModel(F, G, PolynomialH((0.0, 1.0))), dt, inputs)
+        simw = ModelSim(HWModel(F, G, PolynomialH((0.0, 1.0))), dt, inputs)
         xs = [Phi @ c for Phi in self._phi(eff, own, simw)]
         return [x if eff is None or eff.post_linear else eff.post(x, own, dt) for x in xs]
 
@@ -645,7 +646,7 @@ def _lsq(A, b) -> np.ndarray:
     return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
-class _GSim(effect_models.ModelSim):
+class _GSim(ModelSim):
     """``base`` (a :class:`ModelSim`) with F and G replaced: ``v``, ``w`` and ``x`` computed on first
     use (an effect that re-simulates from ``u`` or ``v`` never needs the later ones)."""
 
@@ -667,7 +668,7 @@ class _GSim(effect_models.ModelSim):
     @property
     def w(self):
         if self._w is None:
-            self._w = [effect_models.simulate_linear(self.model.linear, v, self.dt) for v in self.v]
+            self._w = [simulate_linear(self.model.linear, v, self.dt) for v in self.v]
         return self._w
 
     @property

@@ -13,7 +13,8 @@ import numpy as np
 from hwid import HwidError, protocols
 from hwid.diagnose import experiments, gap, rank, residual_structure
 from hwid.diagnose.baseline import has_outside_modes
-from hwid.diagnose.effects import BLOCK, CATALOGUE, ModelSim, Scale, catalogue
+from hwid.diagnose.effects import BLOCK, CATALOGUE, Scale, catalogue
+from hwid.diagnose.modelsim import ModelSim
 from hwid.diagnose.result import DiagnosisResult
 from hwid.diagnose.sim_side import load_model
 from hwid.diagnose.verdict import Candidate, alternative_baseline, indistinguishable, refloor

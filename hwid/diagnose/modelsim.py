@@ -1,0 +1,280 @@
+"""The diagnosis's simulator of a model on its experiments (:class:`ModelSim`), with the signal
+primitives the effects are built from (a slew, a play between two border arrays, a direction map,
+a dead zone, a first-order lag, a zero-phase smoother).
+
+:class:`ModelSim` caches the chain's intermediate signals so an effect recomputes only what it
+changes, carries the input each experiment's plant received before it (an actuator with memory),
+and, given the measured outputs (:meth:`ModelSim.measure`), estimates the starting state an
+effect leaves open: the gear's position (:meth:`ModelSim.gear_start`) and G's rest level
+(:meth:`ModelSim.rest_level`).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from scipy.ndimage import uniform_filter1d
+from scipy.optimize import minimize_scalar
+
+from hwid.blocks.linear import LinearBlock
+from hwid.diagnose.experiments import settling_time
+from hwid.model import HWModel, InputNonlinearity
+
+
+# ------------------------------------------------------------------------------ signal primitives
+
+@njit(cache=True)
+def _rate_limit(u, step, u0):
+    out = np.empty_like(u)
+    prev = u0
+    for k in range(u.shape[0]):
+        d = u[k] - prev
+        if d > step:
+            d = step
+        elif d < -step:
+            d = -step
+        prev = prev + d
+        out[k] = prev
+    return out
+
+
+@njit(cache=True)
+def _play_arrays(lo, hi, v0):
+    out = np.empty_like(lo)
+    prev = v0
+    for k in range(lo.shape[0]):
+        if prev < lo[k]:
+            prev = lo[k]
+        elif prev > hi[k]:
+            prev = hi[k]
+        out[k] = prev
+    return out
+
+
+@njit(cache=True)
+def _direction_arrays(z, up, dn, u0):
+    out = np.empty_like(z)
+    prev = u0
+    for k in range(z.shape[0]):
+        if k > 0:
+            dz = z[k] - z[k - 1]
+            if dz > 0.0:
+                prev = up[k]
+            elif dz < 0.0:
+                prev = dn[k]
+        out[k] = prev
+    return out
+
+
+def rate_limited(u, rate: float, dt: float) -> np.ndarray:
+    """An actuator slewing at most ``rate`` units/s, starting at ``u[0]``."""
+    u = np.ascontiguousarray(u, float)
+    return _rate_limit(u, float(rate) * dt, float(u[0])) if u.size else u.copy()
+
+
+def _since_crossed(u, F: InputNonlinearity) -> int:
+    """Samples back from the end of ``u`` to the start of the shortest tail over which ``u`` spans
+    more than F's play (somewhere in it the input moved from one side of the play to the other, so
+    the gear's state before it no longer matters); all of ``u`` if no tail does."""
+    width = abs(float(F.d_plus - F.d_minus)) * (1.0 if F.type == "backlash" else 1.0 / max(F.slope_down, 1e-9))
+    if u.size == 0 or width == 0:
+        return 0
+    r = u[::-1]
+    hi = np.maximum.accumulate(r)
+    lo = np.minimum.accumulate(r)
+    done = np.flatnonzero(hi - lo > width)
+    return int(done[0]) + 1 if done.size else int(u.size)
+
+
+def deadzone(u, delta: float) -> np.ndarray:
+    """0 for ``|u| < delta``, ``u - delta sign(u)`` beyond."""
+    u = np.asarray(u, float)
+    return np.sign(u) * np.maximum(np.abs(u) - delta, 0.0)
+
+
+def first_order(x, tau: float, dt: float) -> np.ndarray:
+    """``1/(tau s + 1)`` applied to ``x`` (exact for a zero-order-held input), from equilibrium."""
+    if tau <= 0:
+        return np.asarray(x, float)
+    return simulate_linear(LinearBlock((1.0,), (float(tau), 1.0)), x, dt)
+
+
+def smooth(r, width: int) -> np.ndarray:
+    """Zero-phase moving average of ``width`` samples (edges: nearest value)."""
+    r = np.asarray(r, float)
+    if width <= 1 or r.size == 0:
+        return r.copy()
+    return uniform_filter1d(r, size=int(min(width, r.size)), mode="nearest")
+
+
+def simulate_linear(G: LinearBlock, v, dt: float) -> np.ndarray:
+    """:meth:`LinearBlock.simulate` (exact ZOH with fractional delay, from the equilibrium of
+    ``v[0]``; its discretisation is cached, so the fits can simulate one G many times)."""
+    return G.simulate(v, dt)
+
+
+# ------------------------------------------------------------------------------------ the simulator
+
+class ModelSim:
+    """Simulates ``model`` on a list of experiments, caching the intermediate signals ``v, w, x``
+    so an effect only recomputes the part of the chain after the stage it changes.
+
+    Every experiment is simulated from the model's default initial state; the diagnosis
+    experiments start with a lead-in (excluded from every gap) that makes the state irrelevant for
+    the model itself. Where an effect keeps the lead-in from doing so, the state is estimated from
+    the measured outputs attached by :meth:`measure` (:meth:`gear_start`, :meth:`rest_level`).
+    ``u_before[i]`` is the input the plant received before experiment ``i`` (every experiment run
+    before it, in order, or None): an actuator with memory (a rate limit) starts where that left
+    it, not at the experiment's first sample, and may not reach the lead-in's far level in time;
+    the backlash is then where that input's last moves put it. ``lead[i]`` is how much of it (the
+    last samples) the chain after the actuator is run through before experiment ``i`` (default:
+    all of it).
+    """
+
+    #: a nuisance start is looked for on this many points across its range first
+    GEAR_POINTS = 9
+
+    def __init__(self, model: HWModel, dt: float, inputs, u_before=None, lead=None):
+        self.model = model
+        self.dt = float(dt)
+        self.inputs = [np.ascontiguousarray(u, float) for u in inputs]
+        self.u_before = ([None if b is None else np.ascontiguousarray(b, float) for b in u_before]
+                         if u_before is not None else None)
+        self.lead = list(lead) if lead is not None else None
+        self.measured = None
+        self.v = [model.input.apply(u) for u in self.inputs]
+        self.w = [simulate_linear(model.linear, v, self.dt) for v in self.v]
+        self.x = [model.output(w) for w in self.w]
+
+    def with_output(self, h) -> "ModelSim":
+        """The same model and experiments with the output nonlinearity replaced by ``h`` (the
+        intermediate ``v, w`` are shared, not recomputed)."""
+        new = object.__new__(ModelSim)
+        new.model = HWModel(self.model.input, self.model.linear, h)
+        new.dt, new.inputs, new.v, new.w = self.dt, self.inputs, self.v, self.w
+        new.u_before, new.lead, new.measured = self.u_before, self.lead, self.measured
+        new.x = [h(w) for w in self.w]
+        return new
+
+    def measure(self, ys, masks, h, sigma: float) -> "ModelSim":
+        """Attach the measured outputs, their scored samples, the output nonlinearity ``h`` to
+        compare them through and the noise floor ``sigma`` (:meth:`gear_start`,
+        :meth:`rest_level`); returns self."""
+        self.measured = ([np.asarray(y, float) for y in ys], [np.asarray(m, bool) for m in masks], h, float(sigma))
+        return self
+
+    def from_input(self, u, F: InputNonlinearity | None = None, i: int | None = None) -> np.ndarray:
+        """The chain after an input effect: ``u`` the actuator's output on experiment ``i`` (the
+        gear's start from the data where ``u`` leaves it open, :meth:`gear_start`)."""
+        F = F or self.model.input
+        return self.from_v(F.apply(u, None if i is None else self.gear_start(u, i, F)))
+
+    def gear_start(self, u, i: int, F: InputNonlinearity | None = None) -> float | None:
+        """The gear's position before ``u[0]`` (``u`` the actuator's output on experiment ``i``)
+        that fits the measured output best, where ``u`` has not crossed the play by the first
+        scored sample; None where it has, for a Backlash-Inverse (its output follows the input's
+        first move) or with nothing measured (:meth:`measure`).
+
+        A rig may start a call with its gear anywhere in the play (parked, homed, left mid-move),
+        and every lead-in crosses the play to put it against a known border -- but an effect of
+        the actuator may keep it from doing so (a slow actuator turns back before it gets across).
+        Started anywhere in the play, a backlash's output is ``clip(g0, v_lo, v_hi)`` with
+        ``v_lo, v_hi`` its outputs from the play's two ends at ``u[0]``: one number per
+        experiment, a nuisance parameter like the initial state ``hwid compare`` estimates."""
+        F = F or self.model.input
+        meas = self.measured
+        if meas is None or F.type != "backlash" or u.size == 0:
+            return None
+        y, m, h = meas[0][i], meas[1][i], meas[2]
+        if not m.any():
+            return None
+        lo, hi = float(F.ascending(u[0])), float(F.descending(u[0]))
+        v_lo, v_hi = F.apply(u, lo), F.apply(u, hi)
+        first = int(np.argmax(m))
+        still = np.flatnonzero(v_hi - v_lo > 1e-9 * max(hi - lo, 1e-12))
+        if not still.size or still[-1] < first:
+            return None
+        G = self.model.linear
+        settle = settling_time(self.model)
+        stop = min(u.size, int(still[-1]) + 1 + (int(np.ceil(settle / self.dt)) if np.isfinite(settle) else u.size))
+        sel = m[:stop]
+        ys = y[:stop][sel]
+
+        def cost(g0):
+            v = np.clip(g0, v_lo[:stop], v_hi[:stop])
+            r = ys - h(simulate_linear(G, v, self.dt))[sel]
+            return float(r @ r)
+
+        return self._search(cost, lo, hi)
+
+    def _search(self, cost, lo: float, hi: float) -> float:
+        """The minimiser of ``cost`` over [lo, hi]: a grid, then Brent's bounded search across the
+        best point's neighbours (to 1e-6 of the range)."""
+        grid = np.linspace(lo, hi, self.GEAR_POINTS)
+        k = int(np.argmin([cost(g) for g in grid]))
+        a, b = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
+        if b <= a:
+            return float(grid[k])
+        sol = minimize_scalar(cost, bounds=(a, b), method="bounded", options={"xatol": 1e-6 * (hi - lo)})
+        return float(sol.x) if sol.fun <= cost(grid[k]) else float(grid[k])
+
+    @property
+    def v_span(self) -> tuple[float, float]:
+        """The range of F's output over every experiment (the working range G may rest anywhere in)."""
+        if getattr(self, "_v_span", None) is None:
+            vs = [np.asarray(v) for v in self.v if len(v)]
+            self._v_span = ((min(float(v.min()) for v in vs), max(float(v.max()) for v in vs)) if vs
+                            else (0.0, 0.0))
+        return self._v_span
+
+    def rest_level(self, v, i: int, G: LinearBlock, w) -> np.ndarray | None:
+        """``w`` (G's response to ``v`` on experiment ``i`` from rest at ``v[0]``) restarted from
+        rest at the level that fits the measured output best, where that level still shows at the
+        scored samples (by more than a tenth of the noise floor between the ends of the working
+        range, :attr:`v_span`); None where it does not or with nothing measured (:meth:`measure`).
+
+        A rig may start a call with G anywhere (left mid-move); every lead-in holds until the
+        model's G has settled from any state, but an effect that slows G (a lightly damped mode)
+        may ring longer. By superposition, G from rest at ``L`` gives ``w + (L - v[0]) f``, with
+        ``f`` its response to a unit rest and no input: one number per experiment, a nuisance
+        parameter like :meth:`gear_start`."""
+        meas = self.measured
+        if meas is None or v.size == 0:
+            return None
+        y, m, h, sigma = meas[0][i], meas[1][i], meas[2], meas[3]
+        if not m.any():
+            return None
+        lo, hi = self.v_span
+        lo, hi = min(lo, float(np.min(v))), max(hi, float(np.max(v)))
+        d = G.simulate(np.zeros(v.size), self.dt, 1.0)      # f: from rest at 1, no input
+        x_lo, x_hi = h(w + (lo - v[0]) * d), h(w + (hi - v[0]) * d)
+        if not np.any(np.abs(x_hi - x_lo)[m] > 0.1 * sigma):
+            return None
+        ys = y[m]
+
+        def cost(level):
+            r = ys - h(w + (level - v[0]) * d)[m]
+            return float(r @ r)
+
+        return w + (self._search(cost, lo, hi) - v[0]) * d
+
+    def before(self, i: int):
+        """The input the plant received before experiment ``i`` (None if unknown)."""
+        ub = getattr(self, "u_before", None)
+        return None if ub is None else ub[i]
+
+    def lead_samples(self, i: int) -> int:
+        """How many of :meth:`before`'s last samples the chain after the actuator runs through."""
+        prev = self.before(i)
+        lead = getattr(self, "lead", None)
+        n = 0 if prev is None else prev.size
+        return n if lead is None or lead[i] is None else min(int(lead[i]), n)
+
+    def from_v(self, v, G: LinearBlock | None = None, i: int | None = None) -> np.ndarray:
+        """``h(G * v)``; with ``i``, G's starting level on experiment ``i`` from the data where it
+        still shows (:meth:`rest_level`)."""
+        G = G or self.model.linear
+        w = simulate_linear(G, v, self.dt)
+        if i is not None:
+            w2 = self.rest_level(v, i, G, w)
+            w = w if w2 is None else w2
+        return self.model.output(w)
