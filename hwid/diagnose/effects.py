@@ -298,9 +298,7 @@ class CurvedBorders(Effect):
         later = [d for d in self.DEGREES if d > self.degree]
         if not later:
             return None
-        e = CurvedBorders(later[0])
-        object.__setattr__(e, "_scale", self._scale)
-        object.__setattr__(e, "_fit_span", self._fit_span)
+        e = self._like(later[0])
         th = np.asarray(theta, float)
         k, k2 = self.degree, e.degree
         out = np.zeros(len(e.params))
@@ -340,13 +338,19 @@ class CurvedBorders(Effect):
     _scale = (0.0, 1.0)              # centre and half-width of the input range: s = (u - centre) / half-width
     _fit_span = (-np.inf, np.inf)    # the fit experiments' input range in s
 
-    def with_scale(self, sc: Scale) -> "CurvedBorders":
-        e = CurvedBorders(self.degree)
-        centre, half = 0.5 * (sc.u_min + sc.u_max), 0.5 * sc.u_width
-        object.__setattr__(e, "_scale", (centre, half))
-        if np.isfinite(sc.u_fit_min) and np.isfinite(sc.u_fit_max) and sc.u_fit_max > sc.u_fit_min:
-            object.__setattr__(e, "_fit_span", ((sc.u_fit_min - centre) / half, (sc.u_fit_max - centre) / half))
+    def _like(self, degree: int, scale=None, fit_span=None) -> "CurvedBorders":
+        """The family's member of ``degree`` on this one's input scaling (or the one given)."""
+        e = CurvedBorders(degree)
+        object.__setattr__(e, "_scale", self._scale if scale is None else scale)
+        object.__setattr__(e, "_fit_span", self._fit_span if fit_span is None else fit_span)
         return e
+
+    def with_scale(self, sc: Scale) -> "CurvedBorders":
+        centre, half = 0.5 * (sc.u_min + sc.u_max), 0.5 * sc.u_width
+        span = (-np.inf, np.inf)
+        if np.isfinite(sc.u_fit_min) and np.isfinite(sc.u_fit_max) and sc.u_fit_max > sc.u_fit_min:
+            span = ((sc.u_fit_min - centre) / half, (sc.u_fit_max - centre) / half)
+        return self._like(self.degree, (centre, half), span)
 
 
 class TimeDelay(Effect):

@@ -131,7 +131,7 @@ class ModelSim:
     """
 
     #: a nuisance start is looked for on this many points across its range first
-    GEAR_POINTS = 9
+    NUISANCE_POINTS = 9
 
     def __init__(self, model: HWModel, dt: float, inputs, u_before=None, lead=None):
         self.model = model
@@ -209,7 +209,7 @@ class ModelSim:
     def _search(self, cost, lo: float, hi: float) -> float:
         """The minimiser of ``cost`` over [lo, hi]: a grid, then Brent's bounded search across the
         best point's neighbours (to 1e-6 of the range)."""
-        grid = np.linspace(lo, hi, self.GEAR_POINTS)
+        grid = np.linspace(lo, hi, self.NUISANCE_POINTS)
         k = int(np.argmin([cost(g) for g in grid]))
         a, b = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
         if b <= a:
