@@ -88,23 +88,31 @@ class LinearBlock:
             return v.copy()
         n, lag, frac, Phi, G1, G0, C, D = discretise(tuple(map(float, self.num)), tuple(map(float, self.den)), float(self.delay),
                                                   float(dt))
-        if n == 0:  # static gain
-            return D * v
         start = v[0] if rest is None else float(rest)
+        if n == 0:  # static gain: w_k = D v(t_k - tau), the delay line holding ``start``
+            vd = _delayed(v, lag + (frac != 0.0), start)
+            return D * vd
         x0 = np.linalg.solve(np.eye(n) - Phi, (G1 + G0) * start)
         if rest is not None:
-            vd = np.concatenate([np.full(lag, start), v[: v.size - lag]]) if lag else v
+            vd = _delayed(v, lag, start) if lag else v
             w = _ss_run(vd, Phi, G1, G0, C, D if frac == 0.0 else 0.0, x0, start)
             if frac != 0.0 and D != 0.0:
                 w = w + D * np.concatenate([[start], vd[:-1]])
             return w
-        vd = np.concatenate([np.full(lag, v[0]), v[: v.size - lag]]) if lag else v
+        vd = _delayed(v, lag, v[0]) if lag else v
         if frac == 0.0:
             return _ss_run(vd, Phi, G1, G0, C, D, x0, vd[0])
         w = _ss_run(vd, Phi, G1, G0, C, 0.0, x0, vd[0])
         if D != 0.0:
             w = w + D * np.concatenate([[vd[0]], vd[:-1]])
         return w
+
+
+def _delayed(v: np.ndarray, lag: int, start: float) -> np.ndarray:
+    """``v`` delayed by ``lag`` samples, the delay line holding ``start``: as long as ``v`` (all
+    ``start`` when ``lag >= len(v)``)."""
+    k = min(lag, v.size)
+    return np.concatenate([np.full(k, start), v[: v.size - k]])
 
 
 @lru_cache(maxsize=256)
@@ -116,13 +124,15 @@ def discretise(num: tuple, den: tuple, delay: float, dt: float):
     B = np.ascontiguousarray(B[:, 0])
     C = np.ascontiguousarray(C[0])
     D = float(D[0, 0]) if np.size(D) else 0.0
-    n = A.shape[0]
+    # a static gain (den of degree 0): tf2ss pads it with a dummy state (A = B = C = 0), whose
+    # Phi = 1 makes the equilibrium solve (I - Phi) x0 = ... singular; it has no state
+    n = 0 if np.trim_zeros(np.asarray(den, float), "f").size <= 1 else A.shape[0]
     lag = int(np.floor(delay / dt + 1e-12))
     frac = delay - lag * dt
     if frac < 1e-12 * dt:
         frac = 0.0
     if n == 0:
-        return n, lag, frac, None, None, None, C, D
+        return n, lag, frac, None, None, None, np.zeros(0), D
     A = np.ascontiguousarray(A)
     Phi, Gfull = _int_expm(A, B, dt)
     if frac == 0.0:
