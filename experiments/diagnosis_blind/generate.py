@@ -207,6 +207,25 @@ def lab_run(params: dict, b: dict, rng: np.random.Generator) -> dict:
             "temperature": (float(rng.uniform(19.0, 26.0)), int(rng.integers(2**31)))}
 
 
+#: an effect shows in the lab log where it moves at least this many samples by more than the
+#: noise's standard deviation (noise-free runs with and without it, the same rig otherwise)
+LAB_VISIBLE_SAMPLES = 20
+
+
+def lab_footprint(params: dict, b: dict) -> int:
+    """How many samples of the lab run the rig's effect moves by more than the noise's standard
+    deviation: the rig run noise-free through the lab run with its effect and without it (same
+    between-call behaviour). A log the effect never touched cannot name it: for the recorded ways
+    such a rig is a plain rig."""
+    quiet = {**params, "noise": {**params["noise"], "std": 0.0}}
+    runs = []
+    for effect in (params["effect"], "none"):
+        state: dict = {}
+        p = json.loads(json.dumps({**quiet, "effect": effect}))
+        runs.append(np.concatenate([rigkit.run(p, state, u, b["dt"]) for u in lab_inputs(b)]))
+    return int(np.sum(np.abs(runs[0] - runs[1]) > params["noise"]["std"]))
+
+
 def write_lab(d: Path, cid: str, i: int, b: dict, run: dict) -> dict:
     """``lab.csv`` and ``recorded.yaml`` in the case directory; returns counts for the log line."""
     u = np.concatenate([p[0] for p in run["parts"]])
@@ -307,6 +326,8 @@ def generate(out: Path, n_cases: int = 40, seed: int = 2024, recorded: bool = Fa
             run = lab_run(json.loads(json.dumps(params)), b, np.random.default_rng(lab_seeds[i]))
             lab_log[cid] = {"base": base, **write_lab(d, cid, i, b, run)}
         sealed[cid] = {"label": label, "base": base, "params": ep, "between_calls": between, "actuator": actuator}
+        if recorded:
+            sealed[cid]["lab_footprint"] = lab_footprint(params, b)
         ids.append(cid)
     (out / "sealed.json").write_text(json.dumps(sealed, indent=1))
     if recorded:

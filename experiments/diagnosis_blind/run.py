@@ -35,6 +35,8 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from generate import LAB_VISIBLE_SAMPLES  # noqa: E402
 CATALOGUE = ["input_saturation", "rate_limit", "input_deadzone", "curved_borders", "time_delay",
              "resonance", "sensor_lag", "sensor_saturation", "drift"]
 WAYS = ["model", "identify", "recorded-model", "recorded-identify"]
@@ -83,8 +85,12 @@ def score(results: list[dict], sealed: dict, half_credit: bool = False) -> dict:
     M = {r: {c: 0 for c in cols} for r in rows}
     correct, ratios, details = 0, [], []
     credit, halves = 0.0, 0
+    unseen = 0
     for r in results:
         truth = sealed[r["case"]]["label"]
+        foot = sealed[r["case"]].get("lab_footprint")
+        if half_credit and truth != "none" and foot is not None and foot < LAB_VISIBLE_SAMPLES:
+            truth, unseen = "none", unseen + 1    # the lab log never shows the effect: a plain rig here
         row = truth if truth in rows else "outside"
         got = "error" if "error" in r else r["verdict"]["effect"]
         M[row][got] += 1
@@ -101,7 +107,8 @@ def score(results: list[dict], sealed: dict, half_credit: bool = False) -> dict:
     n_none = sum(M["none"].values())
     n_out = sum(M["outside"].values())
     ok_runs = [r for r in results if "error" not in r]
-    extra = {"credit": credit, "halves": halves, "accuracy_half_credit": credit / max(len(results), 1)} if half_credit else {}
+    extra = {"credit": credit, "halves": halves, "accuracy_half_credit": credit / max(len(results), 1),
+             "effect_not_in_log": unseen} if half_credit else {}
     return {"matrix": M, "rows": rows, "cols": cols, "n": len(results), "correct": int(correct),
             "accuracy": correct / max(len(results), 1), **extra,
             "false_alarms_on_none": n_none - M["none"]["none"], "n_none": n_none,
@@ -124,6 +131,8 @@ def print_table(sc: dict, way: str) -> None:
     if "credit" in sc:
         print(f"correct (half credit for indistinguishable): {sc['credit']:g}/{sc['n']} "
               f"({100 * sc['accuracy_half_credit']:.0f} %), {sc['halves']} half(s)")
+        print(f"rigs whose effect moves fewer than {LAB_VISIBLE_SAMPLES} samples of the lab log by more than the "
+              f"noise (scored as plain rigs): {sc['effect_not_in_log']}")
     print("truth \\ verdict".ljust(18) + "".join(short[c].rjust(7) for c in sc["cols"]))
     for r in sc["rows"]:
         if sum(sc["matrix"][r].values()) == 0:

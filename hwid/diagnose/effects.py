@@ -159,7 +159,7 @@ class InputSaturation(Effect):
         return _grid(np.linspace(lo[0], lo[1], 7)[:-1], np.linspace(hi[0], hi[1], 7)[1:])
 
     def simulate(self, sim, theta, i):
-        return sim.from_input(np.clip(sim.inputs[i], theta[0], theta[1]), i=i)
+        return sim.from_input(sim.actuate(i, lambda u: np.clip(u, theta[0], theta[1])), i=i)
 
 
 class RateLimit(Effect):
@@ -194,7 +194,7 @@ class RateLimit(Effect):
 
     def simulate(self, sim, theta, i):
         u, c, prev = sim.inputs[i], float(theta[1]), sim.before(i)
-        fresh = sim.from_input(rate_limited(u, theta[0], sim.dt), i=i)
+        fresh = sim.from_input(sim.actuate(i, lambda a: rate_limited(a, theta[0], sim.dt)), i=i)
         if c <= 0 or prev is None or not prev.size:
             return fresh
         # the actuator through the whole session before; the gear from the data where this call's
@@ -247,7 +247,7 @@ class InputDeadzone(Effect):
             dp = dm = 0.5 * (dp + dm)
             dp += 1e-9
         F2 = InputNonlinearity(F.type, F.slope_up, F.slope_down, dp, dm)
-        return sim.from_input(deadzone(sim.inputs[i], delta), F2, i)
+        return sim.from_input(sim.actuate(i, lambda u: deadzone(u, delta)), F2, i)
 
 
 class CurvedBorders(Effect):

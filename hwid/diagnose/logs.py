@@ -4,9 +4,12 @@ No new experiment can be run, so the diagnosis works with what the records hold:
 
 1. **Split** into fit and validation parts: by experiment where the records hold several (every
    other usable one to validation, in recorded order), by interleaved time blocks where they hold
-   one (blocks of at least four settling times, odd ones to validation). The samples of a record
-   before its state is known are scored nowhere: until the input has spanned the model's play (the
-   gear's state at the start is unknown) and then 1.5 settling times of G (so has G's).
+   one (blocks of at least four settling times, odd ones to validation). Each record's unknown
+   start is burnt in: its samples are scored nowhere until the input has spanned the model's play
+   and G has then settled 1.5 times. Where that would leave no fit or no validation part (a slow
+   plant, short records), each record's start is estimated through the model instead (the gear's
+   place in the play, G's rest level) and put before it as a short pre-input
+   (:mod:`hwid.diagnose.starts`), every sample then scored; which records, in ``data.starts``.
 2. **Model**: ``--model``, or the whole-model output-error fit (:mod:`hwid.identify.whole`, each
    record's initial gear and G state estimated) on the fit parts alone, written to ``whole.h5``.
 3. **Noise floor** (:mod:`hwid.diagnose.gap`): from repeated experiments (identical inputs) where
@@ -126,20 +129,59 @@ def plan(records) -> tuple[list[tuple], str]:
     return out, "blocks"
 
 
-def split(parts, model, dt: float, settle_s: float, design) -> tuple[list, list]:
-    """The diagnosis's experiments from :func:`plan`'s parts, scored where the model's state is
-    known (:func:`known_from`): ``(experiments, records)``; a record split in blocks appears twice,
-    once per role, with complementary masks."""
-    settle = max(int(round(1.5 * settle_s / dt)), 1)
-    exps, recs = [], []
+def with_starts(parts, model, dt: float, settle_s: float, echo) -> tuple[list, dict]:
+    """:func:`plan`'s parts as ``(record, role, samples, scored)``, each record's unknown start
+    dealt with: burnt in (``scored`` false up to :func:`known_from` with 1.5 settling times); or,
+    where the burn-in would leave the records no fit or no validation part of :data:`MIN_SCORED`
+    samples (a slow plant, short records), estimated through ``model`` and put before every record
+    as :data:`hwid.diagnose.starts.PRE` samples that are never scored (:mod:`hwid.diagnose.starts`).
+    Returns the parts and the estimated starts by record name (``level``, ``gear``, and the rms
+    of the record's opening from the default start and from the estimated one).
+
+    The burn-in is preferred where it is affordable: an estimated start is fitted by the model
+    without the effect, and an effect that shows in a record's opening would be partly absorbed
+    into it. An estimated start is fitted on the record's opening only (until the input has
+    spanned the play and G has settled once more), where it still shows: what an unmodelled effect
+    does later in the record does not move it."""
+    from hwid.diagnose import starts
+    burn = max(int(round(1.5 * settle_s / dt)), 1)
+    out = []
     for r, role, samples in parts:
-        mask = samples.copy()
-        mask[:known_from(r.u, model.input, settle)] = False
-        if mask.sum() < MIN_SCORED:
+        scored = samples.copy()
+        scored[:known_from(r.u, model.input, burn)] = False
+        out.append((r, role, samples, scored))
+    if all(any(p[3].sum() >= MIN_SCORED for p in out if p[1] == role) for role in ("fit", "validation")):
+        return out, {}
+    if all(known_from(r.u, model.input, 0) >= r.u.size for r, _, _, _ in out):
+        raise HwidError("diagnose: no record's input spans the model's play: nothing in the log moves the gear from "
+                        "one border to the other, so nothing tells where it is; record a run that does")
+    settle = max(int(round(settle_s / dt)), 1)
+    new, found = {}, {}
+    for r, _, _, _ in out:
+        if id(r) in new:
             continue
-        name = r.name if samples.all() else f"{r.name}:{role}"
-        e = experiments.Experiment(name, "recorded", role, np.asarray(r.u, float), mask)
-        e.region = experiments.regions(e.u, mask, design)
+        st = starts.estimate(model, r.u, r.y, dt, known_from(r.u, model.input, settle) + settle)
+        new[id(r)] = replace(r, u=np.r_[st["pre"], r.u], y=np.r_[np.full(starts.PRE, r.y[0]), r.y],
+                             attrs={**r.attrs, "pre": starts.PRE})
+        found[r.name] = {k: st[k] for k in ("level", "gear", "rms_before", "rms_after")}
+    echo(f"burning in each record's start (the input spanning the play, then {1.5 * settle_s:.3g} s for G) "
+         f"would leave no fit or no validation part of {MIN_SCORED} samples: each start estimated instead "
+         "(G's rest level, the gear's place); the opening's rms from the default start -> from the estimate: " +
+         ", ".join(f"{k} {v['rms_before']:.3g} -> {v['rms_after']:.3g}" for k, v in found.items()))
+    pad = np.zeros(starts.PRE, bool)
+    return [(new[id(r)], role, np.r_[pad, samples], np.r_[pad, samples]) for r, role, samples, _ in out], found
+
+
+def split(parts, design) -> tuple[list, list]:
+    """The diagnosis's experiments from :func:`with_starts`'s parts: ``(experiments, records)``;
+    a record split in blocks appears twice, once per role, with complementary masks."""
+    exps, recs = [], []
+    for r, role, samples, scored in parts:
+        if scored.sum() < MIN_SCORED:
+            continue
+        name = r.name if samples[int(r.attrs.get("pre", 0)):].all() else f"{r.name}:{role}"
+        e = experiments.Experiment(name, "recorded", role, np.asarray(r.u, float), scored.copy())
+        e.region = experiments.regions(e.u, scored, design)
         exps.append(e)
         recs.append(r)
     return exps, recs
@@ -215,11 +257,14 @@ def floor_from_logs(exps, recs, xs, F, design) -> tuple:
     distinct = list({id(r): r for r in recs}.values())
     pairs = []
     for i, a in enumerate(distinct):
+        ka = int(a.attrs.get("pre", 0))
         for b in distinct[i + 1:]:
-            if a.u.size == b.u.size and a.u.size >= MIN_SCORED and np.allclose(a.u, b.u, rtol=0, atol=1e-9):
-                mask = np.zeros(a.u.size, bool)
-                mask[max(known_from(a.u, F, width // 2), 0):] = True
-                pairs.append((a.y, b.y, mask))
+            kb = int(b.attrs.get("pre", 0))
+            ua, ub = a.u[ka:], b.u[kb:]
+            if ua.size == ub.size and ua.size >= MIN_SCORED and np.allclose(ua, ub, rtol=0, atol=1e-9):
+                mask = np.zeros(ua.size, bool)
+                mask[max(known_from(ua, F, width // 2), 0):] = True
+                pairs.append((a.y[ka:], b.y[kb:], mask))
     if pairs:
         floor, source = gap.noise_floor(pairs, width, y_scale), "repeats"
     else:
@@ -289,15 +334,16 @@ def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effe
     settle_s = step_settling_time(sim_model)
     design = experiments.Design(dt, float(u_all.min()), float(u_all.max()), 0.0, settle_s,
                                 experiments.bandwidth(sim_model, dt), int(cfg.seed))
-    exps, recs = split(parts, sim_model, dt, settle_s, design)
+    scored_parts, found = with_starts(parts, sim_model, dt, settle_s, echo)
+    exps, recs = split(scored_parts, design)
     fit_idx = [i for i, e in enumerate(exps) if e.role == "fit"]
     val_idx = [i for i, e in enumerate(exps) if e.role == "validation"]
     if not val_idx or not fit_idx:
-        raise HwidError("diagnose: after the samples where the model's state is unknown (until the input has "
-                        f"spanned the play, then {1.5 * settle_s:.3g} s for G), the records leave no "
-                        f"{'validation' if fit_idx else 'fit'} part of {MIN_SCORED} samples")
-    sim_fit = ModelSim(sim_model, dt, [exps[i].u for i in fit_idx])
-    sim_val = ModelSim(sim_model, dt, [exps[i].u for i in val_idx])
+        raise HwidError(f"diagnose: the records leave no {'validation' if fit_idx else 'fit'} part of "
+                        f"{MIN_SCORED} samples")
+    pre = [int(r.attrs.get("pre", 0)) for r in recs]
+    sim_fit = ModelSim(sim_model, dt, [exps[i].u for i in fit_idx], pre=[pre[i] for i in fit_idx])
+    sim_val = ModelSim(sim_model, dt, [exps[i].u for i in val_idx], pre=[pre[i] for i in val_idx])
     scale = _scale(design, exps, sim_fit, sim_val, recs)
     val = Validation(design, exps, recs, fit_idx, val_idx, sim_fit, sim_val, scale, 0.0, 0.0)
     xs = dict(zip(fit_idx, sim_fit.x)) | dict(zip(val_idx, sim_val.x))
@@ -307,6 +353,7 @@ def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effe
     additive = drift_additivity(pairs, design, floor.sigma)
     data = {"split": how, "fit": [exps[i].name for i in fit_idx], "validation": [exps[i].name for i in val_idx],
             "scored_samples": {e.name: int(e.mask.sum()) for e in exps}, "noise_source": source,
+            "starts": found,
             "records": [{"name": r.name, "samples": int(r.u.size), "seconds": float(r.u.size * dt)} for r in records]}
     available = catalogue(scale)
 

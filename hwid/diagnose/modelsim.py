@@ -13,10 +13,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 from scipy.ndimage import uniform_filter1d
-from scipy.optimize import minimize_scalar
 
 from hwid.blocks.linear import LinearBlock
 from hwid.diagnose.experiments import settling_time
+from hwid.diagnose.starts import search_1d
 from hwid.model import HWModel, InputNonlinearity
 
 
@@ -127,19 +127,22 @@ class ModelSim:
     it, not at the experiment's first sample, and may not reach the lead-in's far level in time;
     the backlash is then where that input's last moves put it. ``lead[i]`` is how much of it (the
     last samples) the chain after the actuator is run through before experiment ``i`` (default:
-    all of it).
+    all of it). ``pre[i]``: how many of experiment ``i``'s first samples are a virtual pre-input
+    that sets the chain's start (:mod:`hwid.diagnose.starts`); an effect of the actuator acts on
+    the samples after it (:meth:`actuate`).
     """
 
     #: a nuisance start is looked for on this many points across its range first
     NUISANCE_POINTS = 9
 
-    def __init__(self, model: HWModel, dt: float, inputs, u_before=None, lead=None):
+    def __init__(self, model: HWModel, dt: float, inputs, u_before=None, lead=None, pre=None):
         self.model = model
         self.dt = float(dt)
         self.inputs = [np.ascontiguousarray(u, float) for u in inputs]
         self.u_before = ([None if b is None else np.ascontiguousarray(b, float) for b in u_before]
                          if u_before is not None else None)
         self.lead = list(lead) if lead is not None else None
+        self.pre = list(pre) if pre is not None else None
         self.measured = None
         self.v = [model.input.apply(u) for u in self.inputs]
         self.w = [simulate_linear(model.linear, v, self.dt) for v in self.v]
@@ -152,8 +155,17 @@ class ModelSim:
         new.model = HWModel(self.model.input, self.model.linear, h)
         new.dt, new.inputs, new.v, new.w = self.dt, self.inputs, self.v, self.w
         new.u_before, new.lead, new.measured = self.u_before, self.lead, self.measured
+        new.pre = self.pre
         new.x = [h(w) for w in self.w]
         return new
+
+    def actuate(self, i: int, act) -> np.ndarray:
+        """Experiment ``i``'s input through the actuator map ``act`` (an effect of the actuator),
+        its virtual pre-input (``pre[i]`` first samples) passed on as it is: it stands for the
+        chain's start, not for anything the actuator was sent."""
+        u = self.inputs[i]
+        k = 0 if getattr(self, "pre", None) is None else int(self.pre[i])
+        return act(u) if k == 0 else np.concatenate([u[:k], act(u[k:])])
 
     def measure(self, ys, masks, h, sigma: float) -> "ModelSim":
         """Attach the measured outputs, their scored samples, the output nonlinearity ``h`` to
@@ -207,15 +219,8 @@ class ModelSim:
         return self._search(cost, lo, hi)
 
     def _search(self, cost, lo: float, hi: float) -> float:
-        """The minimiser of ``cost`` over [lo, hi]: a grid, then Brent's bounded search across the
-        best point's neighbours (to 1e-6 of the range)."""
-        grid = np.linspace(lo, hi, self.NUISANCE_POINTS)
-        k = int(np.argmin([cost(g) for g in grid]))
-        a, b = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
-        if b <= a:
-            return float(grid[k])
-        sol = minimize_scalar(cost, bounds=(a, b), method="bounded", options={"xatol": 1e-6 * (hi - lo)})
-        return float(sol.x) if sol.fun <= cost(grid[k]) else float(grid[k])
+        """The minimiser of ``cost`` over [lo, hi] (:func:`hwid.diagnose.starts.search_1d`)."""
+        return search_1d(cost, lo, hi, self.NUISANCE_POINTS)
 
     @property
     def v_span(self) -> tuple[float, float]:

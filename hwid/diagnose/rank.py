@@ -656,6 +656,7 @@ class _GSim(ModelSim):
         self.dt, self.inputs = base.dt, base.inputs
         self.u_before = getattr(base, "u_before", None)
         self.lead = getattr(base, "lead", None)
+        self.pre = getattr(base, "pre", None)
         self.measured = getattr(base, "measured", None)
         self._v = self._w = self._x = None
 
