@@ -72,6 +72,36 @@ def test_whole_fit_recovers_the_model_from_random_levels():
     assert cmp.rms_over_floor < 1.1
 
 
+def test_a_backlash_inverse_record_that_opens_with_a_hold_starts_anywhere_its_branches_reach():
+    """A Backlash-Inverse holds its output until the input first moves: a record that opens with a
+    hold shows the output it was left at by the previous session, which may lie outside both
+    branches' values at the record's first input. The fit's start reaches it, and the truth comes
+    back (the fit once clamped the start between the branches at u[0], leaving 15x the noise on a
+    lab log of a Backlash-Inverse rig and a wrong model)."""
+    _, truth = _plant(**{"plant.input_nonlinearity.type": "backlash_inverse",
+                         "plant.input_nonlinearity.slope_down": 1.3,
+                         "plant.output_nonlinearity.polynomial": [0, 0.8, 0, -0.1]})
+    norm = truth.normalised()
+    rng = np.random.default_rng(12)
+    dt, sigma = 0.05, 0.01
+    records = []
+    for i, start in enumerate((0.0, -1.0)):
+        u = np.r_[np.full(int(10 / dt), -1.2 if i == 0 else 1.2), _levels_with_ramps(rng, 15, 3.0, 1.0, dt)]
+        lo, hi = sorted((float(truth.input.ascending(u[0])), float(truth.input.descending(u[0]))))
+        assert not lo <= start <= hi            # outside the branches at u[0]
+        x = truth.simulate(u, dt, gear=start).x
+        assert np.ptp(x[: int(10 / dt)]) < 1e-9  # held there until the input moves
+        records.append(Record(f"opens_with_a_hold_{i}", dt, u, x + sigma * rng.standard_normal(u.size)))
+    res = WholeModelFit(max_degree=4, structures=[Structure(1, 0), Structure(2, 0)],
+                        types=("backlash_inverse",)).fit(records).result_
+    assert res.type == "backlash_inverse" and res.structure == "1p0q0z"
+    for name in ("d_plus", "d_minus", "slope_down"):
+        assert _inside(getattr(res, name), res.ci[name], getattr(norm.input, name)), name
+    assert 0.95 < res.sigma / sigma < 1.05
+    for rec, start in zip(records, (0.0, -1.0)):
+        assert res.initial_states[rec.name]["gear"] == pytest.approx(start, abs=0.02)
+
+
 def test_run_with_whole_enabled_is_not_worse_than_the_stages(tmp_path):
     """``hwid run`` with identification.whole.enabled: the whole fit starts from the stages, its
     estimates hold the truth, and its free-run error on the stages' records is no larger than the

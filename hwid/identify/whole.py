@@ -150,7 +150,14 @@ class _Problem:
         states = []
         j = k + int(self.with_delay)
         for r in self.records:
-            lo, hi = sorted((float(f.ascending(r.u[0])), float(f.descending(r.u[0]))))
+            if self.type == "backlash":
+                lo, hi = sorted((float(f.ascending(r.u[0])), float(f.descending(r.u[0]))))
+            else:
+                # a Backlash-Inverse's output until the input first moves is what it was when the
+                # record began, anywhere its branches reach over the session, not only between
+                # their values at u[0] (a record that opens with a hold shows it all along)
+                a, d = f.ascending(r.u), f.descending(r.u)
+                lo, hi = float(min(a.min(), d.min())), float(max(a.max(), d.max()))
             frac = 0.5 * (1.0 + np.tanh(0.5 * theta[j]))
             states.append((lo + frac * (hi - lo), float(theta[j + 1])))
             j += 2
@@ -431,13 +438,18 @@ class WholeModelFit:
 
 def _best_states(prob: _Problem, theta) -> np.ndarray:
     """``theta`` with each experiment's initial gear put where it fits best of: against the lower
-    border, in the middle of the play, against the upper one (one experiment at a time). The gear's
+    border, in the middle of the play, against the upper one (a Backlash-Inverse: nine places
+    across its branches' range; one experiment at a time). The gear's
     place enters through a tanh: started on the wrong side, the search stalls where the tanh is flat."""
     theta = np.array(theta, float)
     j = 3 + prob.structure.n_params + int(prob.with_delay)
     best = float(np.sum(prob.residual(theta) ** 2))
+    # a Backlash-Inverse's start spans its branches' whole range (_Problem.unpack): finer steps
+    places = (-6.0, 0.0, 6.0) if prob.type == "backlash" else \
+        tuple(float(np.clip(2 * np.arctanh(2 * q - 1), -6, 6)) if 0 < q < 1 else 6.0 * np.sign(q - 0.5)
+              for q in np.linspace(0, 1, 9))
     for _ in prob.records:
-        for frac in (-6.0, 0.0, 6.0):
+        for frac in places:
             trial = theta.copy()
             trial[j] = frac
             cost = float(np.sum(prob.residual(trial) ** 2))
