@@ -439,11 +439,8 @@ class WholeModelFit:
 def _best_states(prob: _Problem, theta) -> np.ndarray:
     """``theta`` with each experiment's initial gear put where it fits best of: against the lower
     border, in the middle of the play, against the upper one (a Backlash-Inverse: nine places
-    across its branches' range; one experiment at a time), each with G's rest level as it was and
-    with G at rest at the gear's output (a rig left standing: G settled where F holds it). The
-    gear's place enters through a tanh: started on the wrong side, the search stalls where the tanh
-    is flat; and with a slow G a rest level far from the gear's output leaves a transient that
-    outweighs the right gear's gain, so the two are tried together."""
+    across its branches' range; one experiment at a time). The gear's
+    place enters through a tanh: started on the wrong side, the search stalls where the tanh is flat."""
     theta = np.array(theta, float)
     j = 3 + prob.structure.n_params + int(prob.with_delay)
     best = float(np.sum(prob.residual(theta) ** 2))
@@ -451,16 +448,13 @@ def _best_states(prob: _Problem, theta) -> np.ndarray:
     places = (-6.0, 0.0, 6.0) if prob.type == "backlash" else \
         tuple(float(np.clip(2 * np.arctanh(2 * q - 1), -6, 6)) if 0 < q < 1 else 6.0 * np.sign(q - 0.5)
               for q in np.linspace(0, 1, 9))
-    for i, _ in enumerate(prob.records):
+    for _ in prob.records:
         for frac in places:
             trial = theta.copy()
             trial[j] = frac
-            settled = trial.copy()
-            settled[j + 1] = prob.unpack(trial)[2][i][0]
-            for t in (trial, settled):
-                cost = float(np.sum(prob.residual(t) ** 2))
-                if cost < best:
-                    best, theta = cost, t
+            cost = float(np.sum(prob.residual(trial) ** 2))
+            if cost < best:
+                best, theta = cost, trial
         j += 2
     return theta
 
