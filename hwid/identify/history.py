@@ -76,6 +76,8 @@ def settled_levels(records, resolution: float | None = None) -> tuple[list[Level
         k = 0
         for s in segs:
             y = np.asarray(r.y[s["start"]:s["stop"]], float)
+            if y.size == 0:     # a level cut to nothing (a fit block that ends where it starts)
+                continue
             got = (steady.get((r.name, s["start"])) or _extrapolated(y, tau, max(sigma, (q or 0.0) / np.sqrt(12.0)))
                    or _short_level(y, q, sigma))
             if got is None:
