@@ -25,7 +25,6 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from hwid.blocks import backlash as bl
 from hwid.model import HWModel, InputNonlinearity
 
 #: samples of the virtual pre-input put before each record
@@ -112,9 +111,3 @@ def estimate(model: HWModel, u, y, dt: float, stop: int | None = None) -> dict:
     rms = lambda r: float(np.sqrt(np.mean(r * r)))
     return {"level": float(level), "gear": float(gear), "pre": pre,
             "rms_before": rms(y - x_def), "rms_after": rms(y - x)}
-
-
-def default_start(F: InputNonlinearity, u) -> float:
-    """F's default gear start at ``u[0]`` (what every simulator assumes without a pre-input)."""
-    p = (F.slope_up, F.slope_down, F.d_plus, F.d_minus)
-    return bl.backlash_start(u, *p) if F.type == "backlash" else bl.backlash_inverse_start(u, *p)
