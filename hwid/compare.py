@@ -74,25 +74,12 @@ def fit_percent(y, y_hat) -> float:
     return float(100.0 * (1.0 - np.linalg.norm(y - y_hat) / spread))
 
 
-def gear_band(model: HWModel, u) -> tuple[float, float]:
-    """The states F may start a record ``u`` in: a Backlash's gear between its two borders at
-    ``u[0]`` (eq. 1); a Backlash-Inverse's output, which holds whatever it was until the input first
-    moves, anywhere its two branches (eq. 2) reach over the record."""
-    f = model.input
-    u = np.atleast_1d(np.asarray(u, float))
-    if f.type == "backlash":
-        a, b = float(f.ascending(u[0])), float(f.descending(u[0]))
-        return (min(a, b), max(a, b))
-    a, d = f.ascending(u), f.descending(u)
-    return (float(min(a.min(), d.min())), float(max(a.max(), d.max())))
-
-
 def initial_state(model: HWModel, u, y, dt: float, grid: int = 9) -> tuple[float, float, np.ndarray]:
     """The initial gear state and G's rest level that make the model's free run closest to ``y``
     (least squares: a ``grid x grid`` search, then Powell within the bounds). Returns
     ``(gear, rest, y_hat)``."""
     u, y = np.asarray(u, float), np.asarray(y, float)
-    lo, hi = gear_band(model, u)
+    lo, hi = model.input.start_band(u)
     v_all = model.input.apply(u)
     span = max(float(np.ptp(v_all)), hi - lo, 1e-9)
     rest_lo, rest_hi = float(v_all.min()) - 0.5 * span, float(v_all.max()) + 0.5 * span

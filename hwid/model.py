@@ -84,6 +84,19 @@ class InputNonlinearity:
             return self.slope_down * (u - self.d_minus)
         return u / self.slope_down + self.d_minus
 
+    def start_band(self, u) -> tuple[float, float]:
+        """The states the operator may start a record ``u`` in: a Backlash's gear between its two
+        borders at ``u[0]`` (eq. 1); a Backlash-Inverse's output, which holds whatever it was until
+        the input first moves, anywhere its two branches (eq. 2) reach over the record (both rise
+        with ``u``, so their ends are at the record's extreme inputs)."""
+        u = np.atleast_1d(np.asarray(u, float))
+        if self.type == "backlash":
+            a, b = float(self.ascending(u[0])), float(self.descending(u[0]))
+            return (min(a, b), max(a, b))
+        lo, hi = float(u.min()), float(u.max())
+        return (float(min(self.ascending(lo), self.descending(lo))),
+                float(max(self.ascending(hi), self.descending(hi))))
+
     def precompensator(self, z, kind: str = "auto") -> np.ndarray:
         """The pre-compensator of Fig. 8 that makes ``F[P[z]] = z`` (Section 5, Lemma 1).
 

@@ -164,7 +164,7 @@ class ModelSim:
         its virtual pre-input (``pre[i]`` first samples) passed on as it is: it stands for the
         chain's start, not for anything the actuator was sent."""
         u = self.inputs[i]
-        k = 0 if getattr(self, "pre", None) is None else int(self.pre[i])
+        k = 0 if self.pre is None else int(self.pre[i])
         return act(u) if k == 0 else np.concatenate([u[:k], act(u[k:])])
 
     def measure(self, ys, masks, h, sigma: float) -> "ModelSim":

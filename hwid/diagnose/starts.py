@@ -75,7 +75,7 @@ def estimate(model: HWModel, u, y, dt: float, stop: int | None = None) -> dict:
     v_def = F.apply(u)
     lo_v, hi_v = float(v_def.min()), float(v_def.max())
     if F.type == "backlash":
-        a, b = float(F.ascending(u[0])), float(F.descending(u[0]))
+        a, b = F.start_band(u)            # the gear's place in the play at u[0]
         lo_v, hi_v = min(lo_v, a), max(hi_v, b)
     # the rig may have been left beyond anything this record drives it to (the previous one went
     # further): G's rest level is looked for over the record's own range widened by it each way
@@ -99,7 +99,6 @@ def estimate(model: HWModel, u, y, dt: float, stop: int | None = None) -> dict:
         return level, cost(level)
 
     if F.type == "backlash":
-        a, b = float(F.ascending(u[0])), float(F.descending(u[0]))
         gear = search_1d(lambda g: inner(g)[1], a, b) if b > a else a
         level = inner(gear)[0]
     else:

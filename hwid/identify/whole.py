@@ -150,14 +150,9 @@ class _Problem:
         states = []
         j = k + int(self.with_delay)
         for r in self.records:
-            if self.type == "backlash":
-                lo, hi = sorted((float(f.ascending(r.u[0])), float(f.descending(r.u[0]))))
-            else:
-                # a Backlash-Inverse's output until the input first moves is what it was when the
-                # record began, anywhere its branches reach over the session, not only between
-                # their values at u[0] (a record that opens with a hold shows it all along)
-                a, d = f.ascending(r.u), f.descending(r.u)
-                lo, hi = float(min(a.min(), d.min())), float(max(a.max(), d.max()))
+            # a Backlash-Inverse's start is anywhere its branches reach over the record, not only
+            # between their values at u[0] (a record that opens with a hold shows it all along)
+            lo, hi = f.start_band(r.u)
             frac = 0.5 * (1.0 + np.tanh(0.5 * theta[j]))
             states.append((lo + frac * (hi - lo), float(theta[j + 1])))
             j += 2
