@@ -16,7 +16,7 @@ from functools import lru_cache
 
 import numpy as np
 from numba import njit
-from scipy import linalg, signal
+from scipy import linalg
 
 
 @njit(cache=True)
@@ -108,6 +108,34 @@ class LinearBlock:
         return w
 
 
+def _tf2ss(num: tuple, den: tuple):
+    """The controllable canonical form of a proper ``num/den`` (scipy's ``tf2ss`` convention,
+    without its per-call overhead, which dominated the whole fit's residual): ``(A, B, C, D)``
+    with ``B`` and ``C`` as vectors; a static gain has no state (``A`` is 0 x 0)."""
+    den = np.asarray(den, float)
+    num = np.asarray(num, float)
+    nz = np.flatnonzero(den)
+    if nz.size == 0:
+        raise ValueError("G's denominator is zero")
+    den = den[nz[0]:]
+    num = num[np.flatnonzero(num)[0]:] if np.any(num) else np.zeros(1)
+    if num.size > den.size:
+        raise ValueError("G(s) must be proper: the numerator's degree exceeds the denominator's")
+    num, den = num / den[0], den / den[0]
+    n = den.size - 1
+    num = np.concatenate([np.zeros(n + 1 - num.size), num])
+    D = float(num[0])
+    if n == 0:
+        return np.zeros((0, 0)), np.zeros(0), np.zeros(0), D
+    A = np.zeros((n, n))
+    A[0, :] = -den[1:]
+    A[1:, :-1] = np.eye(n - 1)
+    B = np.zeros(n)
+    B[0] = 1.0
+    C = np.ascontiguousarray(num[1:] - D * den[1:])
+    return A, B, C, D
+
+
 def _delayed(v: np.ndarray, lag: int, start: float) -> np.ndarray:
     """``v`` delayed by ``lag`` samples, the delay line holding ``start``: as long as ``v`` (all
     ``start`` when ``lag >= len(v)``)."""
@@ -120,13 +148,8 @@ def discretise(num: tuple, den: tuple, delay: float, dt: float):
     """The exact sampled recursion of the module docstring, cached (fits simulate one G many times).
 
     Returns ``(n, lag, frac, Phi, Gamma1, Gamma0, C, D)``."""
-    A, B, C, D = signal.tf2ss(np.asarray(num, float), np.asarray(den, float))
-    B = np.ascontiguousarray(B[:, 0])
-    C = np.ascontiguousarray(C[0])
-    D = float(D[0, 0]) if np.size(D) else 0.0
-    # a static gain (den of degree 0): tf2ss pads it with a dummy state (A = B = C = 0), whose
-    # Phi = 1 makes the equilibrium solve (I - Phi) x0 = ... singular; it has no state
-    n = 0 if np.trim_zeros(np.asarray(den, float), "f").size <= 1 else A.shape[0]
+    A, B, C, D = _tf2ss(num, den)
+    n = A.shape[0]
     lag = int(np.floor(delay / dt + 1e-12))
     frac = delay - lag * dt
     if frac < 1e-12 * dt:

@@ -71,14 +71,14 @@ def g_from_params(structure: Structure, p: Sequence[float], delay: float = 0.0) 
     i = 0
     for _ in range(structure.poles):
         a = np.exp(p[i])
-        den = np.polymul(den, [1.0 / a, 1.0])
+        den = np.convolve(den, [1.0 / a, 1.0])
         i += 1
     for _ in range(structure.pairs):
         wn, zeta = np.exp(p[i]), np.exp(p[i + 1])
-        den = np.polymul(den, [1.0 / wn ** 2, 2 * zeta / wn, 1.0])
+        den = np.convolve(den, [1.0 / wn ** 2, 2 * zeta / wn, 1.0])
         i += 2
     for _ in range(structure.zeros):
-        num = np.polymul(num, [p[i], 1.0])
+        num = np.convolve(num, [p[i], 1.0])
         i += 1
     return LinearBlock(tuple(num.tolist()), tuple(den.tolist()), float(delay))
 
