@@ -132,3 +132,52 @@ def test_run_with_whole_enabled_is_not_worse_than_the_stages(tmp_path):
     from hwid.report.html import write_report
     page = write_report(tmp_path / "run").read_text()
     assert "id='whole'" in page and f"{whole.d_plus:.4g}" in page
+
+
+def _origin_problem(kind, h_bar, sigma=0.0, seed=5):
+    """A _Problem on random levels whose records are the model ``theta`` with ``h_bar`` (noise
+    ``sigma``): F with unequal slopes, a first-order G, each record's own start."""
+    from hwid.identify.whole import _Problem
+    rng = np.random.default_rng(seed)
+    recs = [Record(f"levels_{i}", 0.05, _levels_with_ramps(rng, 12, 2.0, 0.5, 0.05), None) for i in range(2)]
+    theta = np.array([0.3, np.log(1.3), np.log(0.6), np.log(2.0), 1.0, 0.1, -2.0, -0.2])
+    prob = _Problem([Record(r.name, r.dt, r.u, np.zeros(r.u.size)) for r in recs], kind, Structure(1, 0), len(h_bar) - 1, False)
+    w = prob.w(theta)
+    y = np.polyval(np.asarray(h_bar, float)[::-1], w) + sigma * rng.standard_normal(w.size)
+    cuts = np.cumsum([r.u.size for r in recs])[:-1]
+    recs = [Record(r.name, r.dt, r.u, part) for r, part in zip(recs, np.split(y, cuts))]
+    return _Problem(recs, kind, Structure(1, 0), len(h_bar) - 1, False), theta
+
+
+@pytest.mark.parametrize("kind", ["backlash", "backlash_inverse"])
+def test_moving_h_bars_origin_to_its_second_zero_describes_the_same_records(kind):
+    """h_bar(0) = 0 fixes the origin of its argument only up to h_bar's other zeros: F moved at its
+    output by x0 (borders and slopes as the operator's equations say) and G's rest levels with it,
+    h_bar re-solved, fit noise-free records exactly as the original does."""
+    from hwid.identify.whole import _moved
+    x0 = 0.5
+    h_bar = np.polynomial.polynomial.polyfromroots([0.0, x0, -1.5])   # x (x - 0.5) (x + 1.5)
+    prob, theta = _origin_problem(kind, h_bar)
+    assert np.max(np.abs(prob.residual(theta))) < 1e-9
+    moved = _moved(prob, theta, x0)
+    assert abs(moved[0] - theta[0]) > 0.3       # the borders did move
+    assert np.max(np.abs(prob.residual(moved))) < 1e-9
+
+
+def test_a_fit_stopped_at_h_bars_second_origin_is_moved_back():
+    """With h_bar only nearly zero at x0, the fit that settled at the origin x0 is a local
+    minimum above the noise; _other_origin finds the truth's origin from it and the borders."""
+    from scipy import optimize
+    from hwid.identify.whole import _moved, _other_origin
+    sigma = 0.01
+    h_bar = np.polynomial.polynomial.polyfromroots([0.0, 0.5 + 0.3j, 0.5 - 0.3j]).real   # x ((x - 0.5)^2 + 0.09)
+    prob, theta = _origin_problem("backlash", h_bar, sigma=sigma)
+    lo, hi = prob.bounds(2.4, 30.0, 0.05)
+    wrong = optimize.least_squares(prob.residual, _moved(prob, theta, 0.5), bounds=(lo, hi)).x
+    rms = lambda t: float(np.sqrt(np.mean(prob.residual(t) ** 2)))
+    assert rms(wrong) > 1.5 * sigma and abs(wrong[0] - theta[0]) > 0.3
+    back = _other_origin(prob, wrong, lo, hi, 200)
+    assert back is not None
+    assert rms(back) < 1.1 * sigma
+    assert back[0] == pytest.approx(theta[0], abs=0.01)
+    assert back[0] - np.exp(back[2]) == pytest.approx(theta[0] - np.exp(theta[2]), abs=0.01)

@@ -213,8 +213,13 @@ def identify_from_logs(cfg, pieces, out: Path, echo) -> tuple:
     try:    # stage 1 from the fit part's levels starts the borders, where they hold enough
         hist = identify_recorded(cfg, pieces)
         borders = InputNonlinearity(hist.type, 1.0, hist.slope_down, hist.d_plus, hist.d_minus)
+        if hist.misfit:
+            # levels the stage-1 model does not reach say little about F's type: a non-invertible
+            # h_bar read from few levels gave a Backlash-Inverse of zero play for a plain Backlash
+            borders = None
         echo(f"stage 1 from the fit part's levels: {hist.type}, d+ = {hist.d_plus:.4g}, d- = {hist.d_minus:.4g}, "
-             f"S^d = {hist.slope_down:.4g}{' (misfit)' if hist.misfit else ''}: the borders' start")
+             f"S^d = {hist.slope_down:.4g}" + (" (misfit: not used; both types tried from a grid of borders)"
+                                               if hist.misfit else ": the borders' start"))
     except HwidError:
         borders = None
     res = WholeModelFit.from_config(cfg, staged=True).fit(pieces, borders=borders).result_

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
+from numba import njit
 from scipy import optimize, stats
 
 from hwid import HwidError
@@ -199,24 +200,26 @@ class _Problem:
             return np.full(self.y.size, 1e6)
         if not np.all(np.isfinite(w)) or np.max(np.abs(w)) > 1e6:
             return np.full(self.y.size, 1e6)
-        phi = self.design(w)
-        return self.y - phi @ self._solve(phi)
+        return _poly_residual(w, self.y, self._solve(w))
 
-    def _solve(self, phi) -> np.ndarray:
-        """h_bar's coefficients for the design ``phi``: the normal equations with the columns
-        scaled to unit norm (p <= 9 columns: far cheaper than an SVD of the tall matrix)."""
-        norms = np.sqrt(np.einsum("ij,ij->j", phi, phi))
+    def _solve(self, w) -> np.ndarray:
+        """h_bar's coefficients (powers 1..degree) for the argument ``w``: the normal equations of
+        the design ``[w, w^2, ...]`` from w's power sums (one pass, no tall matrix), with the
+        columns scaled to unit norm (p <= 9 columns)."""
+        sums, rhs = _power_sums(w, self.y, self.degree)
+        p = self.degree
+        gram = np.array([[sums[i + j] for j in range(1, p + 1)] for i in range(1, p + 1)])
+        norms = np.sqrt(np.diag(gram).copy())
         norms[norms == 0] = 1.0
-        scaled = phi / norms
-        gram = scaled.T @ scaled
         try:
-            c = np.linalg.solve(gram, scaled.T @ self.y)
+            c = np.linalg.solve(gram / np.outer(norms, norms), rhs / norms)
         except np.linalg.LinAlgError:
+            scaled = self.design(w) / norms
             c = np.linalg.lstsq(scaled, self.y, rcond=None)[0]
         return c / norms
 
     def h(self, theta) -> np.ndarray:
-        return np.concatenate([[0.0], self._solve(self.design(self.w(theta)))])
+        return np.concatenate([[0.0], self._solve(self.w(theta))])
 
     def full_residual(self, full) -> np.ndarray:
         """The output error of outer parameters and h_bar's coefficients together (for the covariance)."""
@@ -238,7 +241,7 @@ class WholeModelFit:
     types : sequence of str
         Input nonlinearity types tried (``"backlash"``, ``"backlash_inverse"``).
     staged : bool
-        Without a start: choose the type and G structure at degree 3 of h_bar first, then only
+        Without a start: choose the type and G structure at h_bar's highest degree first, then only
         that pair's degrees (about a quarter of the fits of the full search, which tries every
         type, structure and degree).
     """
@@ -288,10 +291,12 @@ class WholeModelFit:
         width = float(np.ptp(np.concatenate([r.u for r in records]))) or 1.0
         table, solutions = [], {}
 
-        def path(kind, structure, degs):
-            """Fits of h_bar's degrees ``degs`` in order, each from the start and from the one before."""
-            first = _best_states(_Problem(records, kind, structure, max(degs), self.delay),
-                                 self._start(records, kind, structure, start, borders))
+        def path(kind, structure, degs, first=None):
+            """Fits of h_bar's degrees ``degs`` in order, each from the start (``first``, or
+            :meth:`_start`'s) and from the one before."""
+            if first is None:
+                first = _best_states(_Problem(records, kind, structure, max(degs), self.delay),
+                                     self._start(records, kind, structure, start, borders))
             theta0, rows = None, []
             for degree in degs:
                 prob = _Problem(records, kind, structure, degree, self.delay)
@@ -324,8 +329,10 @@ class WholeModelFit:
 
         pairs = [(kind, structure) for kind in types for structure in structures]
         if self.staged and start is None and len(pairs) > 1:
-            # type and G structure at one degree of h_bar, then every degree for the best of them
-            mid = min(3, max(degrees))
+            # type and G structure at h_bar's highest degree (a lower one misranks them where h_bar
+            # is far from monotonic: the paper's quintic read as a cubic picked a wrong G and gap),
+            # then every degree for the best of them
+            mid = max(degrees)
             scored = [(path(kind, structure, [mid])[0]["aic"], kind, structure) for kind, structure in pairs]
             pairs = [min(scored, key=lambda x: x[0])[1:]]
             # the winner's row at that degree is fitted again on its degree path below
@@ -333,6 +340,20 @@ class WholeModelFit:
         for kind, structure in pairs:
             path(kind, structure, list(degrees))
         key = min(solutions, key=lambda k: solutions[k][2])
+        prob, theta, _ = solutions[key]
+        lo, hi = prob.bounds(width, span, dt)
+        moved = _other_origin(prob, theta, lo, hi, self.max_nfev)
+        if moved is not None:
+            # the selected fit sat at another origin of h_bar: its type and structure's degree
+            # path again from the one found there, so the degree is chosen among fits there
+            own = (prob.type, str(prob.structure))
+            before = {r["degree"]: r for r in table if (r["type"], r["structure"]) == own}
+            table[:] = [r for r in table if (r["type"], r["structure"]) != own]
+            for row in path(prob.type, prob.structure, list(degrees), first=moved):
+                old = before.get(row["degree"])
+                if old is not None and old["aic"] < row["aic"]:   # the table keeps what solutions keeps
+                    table[table.index(row)] = old
+            key = min(solutions, key=lambda k: solutions[k][2])
         best = (solutions[key][2], solutions[key][0], solutions[key][1])
         solutions = {k: v[:2] for k, v in solutions.items()}
         _, prob, theta = best
@@ -342,7 +363,8 @@ class WholeModelFit:
 
     def _start(self, records, kind, structure, start: HWModel | None, borders=None) -> np.ndarray:
         """Outer start values: from ``start`` where given, else from ``borders`` (G at its default
-        start), else the best of a coarse border grid (h_bar solved for, G at its default start)."""
+        start), else the best of a coarse border grid (h_bar of the highest degree solved for, G at
+        its default start)."""
         span = max(r.u.size * r.dt for r in records)
         dt = records[0].dt
         g_p = g_params_from(structure, None if start is None else start.linear, span, dt)
@@ -357,7 +379,7 @@ class WholeModelFit:
         u_all = np.concatenate([r.u for r in records])
         width = float(np.ptp(u_all)) or 1.0
         centre = float(np.median(u_all))
-        prob = _Problem(records, kind, structure, 3, self.delay)
+        prob = _Problem(records, kind, structure, self.max_degree, self.delay)
         grid = [np.array([centre + a * width, 0.0, np.log(b * width), *g_p, *extra, *states])
                 for a in np.linspace(-0.25, 0.25, 7) for b in (0.02, 0.1, 0.3, 0.6)]
         if borders is not None:
@@ -452,6 +474,84 @@ def _best_states(prob: _Problem, theta) -> np.ndarray:
                 best, theta = cost, trial
         j += 2
     return theta
+
+
+@njit(cache=True)
+def _power_sums(w, y, p):
+    """``sum w^k`` for k = 0..2p and ``sum y w^k`` for k = 1..p."""
+    sums = np.zeros(2 * p + 1)
+    rhs = np.zeros(p)
+    for i in range(w.shape[0]):
+        x = w[i]
+        q = 1.0
+        for k in range(2 * p + 1):
+            sums[k] += q
+            if 1 <= k <= p:
+                rhs[k - 1] += y[i] * q
+            q *= x
+    return sums, rhs
+
+
+@njit(cache=True)
+def _poly_residual(w, y, c):
+    """``y - sum_k c[k-1] w^k`` (Horner)."""
+    out = np.empty(w.shape[0])
+    p = c.shape[0]
+    for i in range(w.shape[0]):
+        acc = 0.0
+        for k in range(p - 1, -1, -1):
+            acc = (acc + c[k]) * w[i]
+        out[i] = y[i] - acc
+    return out
+
+
+def _origins(prob: _Problem, theta) -> list[float]:
+    """Other places ``x0`` of h_bar's argument where h_bar is nearly zero (a local minimum of
+    ``|h_bar|`` under a tenth of its range) within what the fit's ``w`` spans.
+
+    ``h_bar(0) = 0`` fixes the origin of h_bar's argument only up to h_bar's other (near) zeros: F
+    moved by ``-x0`` at its output, G's rest levels with it, and h_bar moved by ``x0`` describe
+    nearly the same records. The fit can settle at such a second origin (a quintic h_bar with a
+    near-zero half the play away: the paper's plant from a lab log stopped there at 1.5x the noise
+    with its borders moved by half the play)."""
+    h = prob.h(theta)
+    w = prob.w(theta)
+    xs = np.linspace(float(w.min()), float(w.max()), 401)
+    hv = np.abs(np.polyval(h[::-1], xs))
+    tol = 0.1 * float(hv.max())
+    away = 0.05 * float(np.ptp(xs))
+    return [float(xs[i]) for i in range(1, xs.size - 1)
+            if hv[i] <= hv[i - 1] and hv[i] <= hv[i + 1] and hv[i] < tol and abs(xs[i]) > away]
+
+
+def _moved(prob: _Problem, theta, x0: float) -> np.ndarray:
+    """``theta`` with the origin of h_bar's argument moved to ``x0``: F's output less ``x0``
+    (a Backlash's borders at ``d + x0 / S``, a Backlash-Inverse's branches at ``d - x0``) and each
+    record's G rest level less ``x0``; the gear's place in its band and G unchanged."""
+    t = np.array(theta, float)
+    d_plus, slope, d_minus = t[0], np.exp(t[1]), t[0] - np.exp(t[2])
+    if prob.type == "backlash":
+        d_plus, d_minus = d_plus + x0, d_minus + x0 / slope
+    else:
+        d_plus, d_minus = d_plus - x0, d_minus - x0
+    t[0], t[2] = d_plus, np.log(max(d_plus - d_minus, 1e-9))
+    j = 3 + prob.structure.n_params + int(prob.with_delay)
+    t[j + 1::2] -= x0
+    return t
+
+
+def _other_origin(prob: _Problem, theta, lo, hi, max_nfev: int):
+    """The fit of ``prob`` from each of h_bar's other origins (:func:`_origins`); the outer
+    parameters of the best, where it fits the records better than ``theta``, else None."""
+    best = float(np.sum(prob.residual(theta) ** 2))
+    found = None
+    for x0 in _origins(prob, theta):
+        t = _best_states(prob, np.clip(_moved(prob, theta, x0), lo + 1e-9, hi - 1e-9))
+        sol = optimize.least_squares(prob.residual, t, bounds=(lo, hi), method="trf", x_scale=1.0,
+                                     max_nfev=max_nfev)
+        if 2 * sol.cost < best * (1 - 1e-6):
+            best, found = 2 * sol.cost, sol.x
+    return found
 
 
 def correlation_time(residual, lengths, max_lag: int = 100) -> float:
