@@ -45,8 +45,9 @@ def lab_parts(hold: float = 4.0, lo: float = -1.5, hi: float = 1.5) -> list[np.n
 
 
 def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int = 0, parts=None,
-              one_record: bool = False):
-    """Write ``NAME.csv`` and its recorded config ``NAME.yaml``; return the config path."""
+              one_record: bool = False, ar: float = 0.0):
+    """Write ``NAME.csv`` and its recorded config ``NAME.yaml``; return the config path. ``ar``:
+    the noise's lag-1 coefficient (AR(1) noise of s.d. :data:`SIGMA`; 0 is white)."""
     rng = np.random.default_rng(seed)
     m = HWModel(InputNonlinearity(F["type"], F["slope_up"], F["slope_down"], F["d_plus"], F["d_minus"]),
                 LinearBlock(tuple(G["num"]), tuple(G["den"]), 0.0), PolynomialH(tuple(H)))
@@ -56,7 +57,11 @@ def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int 
     frames, t0 = [], 0.0
     for u in parts:
         ue = u if rate is None else rate_limited(u, rate, DT)
-        y = m.simulate(ue, DT).x + SIGMA * rng.standard_normal(u.size)
+        e = SIGMA * np.sqrt(1 - ar * ar) * rng.standard_normal(u.size)
+        e[0] = SIGMA * rng.standard_normal()
+        for k in range(1, u.size):
+            e[k] += ar * e[k - 1]
+        y = m.simulate(ue, DT).x + e
         ts = t0 + (np.arange(u.size) + rng.uniform(-0.03, 0.03, u.size)) * DT
         frames.append(pd.DataFrame({"timestamp": pd.Timestamp("2026-03-02T10:00:00") + pd.to_timedelta(ts, "s"),
                                     "command": u * 100 + 2048, "position": y * 500, "temperature": 31.0}))

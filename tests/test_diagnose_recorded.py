@@ -68,6 +68,17 @@ def test_plain_log_is_no_false_alarm(tmp_path, way):
         assert s["model"]["source"] == "identified"
 
 
+def test_plain_log_with_coloured_noise_is_no_false_alarm(tmp_path):
+    """AR(1) noise (lag-1 coefficient 0.5, as on the blind check's asymmetric base), identified
+    from the log: the floor carries the noise's correlation, and no effect is credited with what
+    the refit of the identified model loses on the validation records."""
+    cfg = config.load(logs.write_lab(tmp_path, "coloured", seed=3, ar=0.5))
+    s = diagnose(cfg, tmp_path / "out", echo=_quiet)
+    assert s["verdict"]["effect"] == "none"
+    assert 0.85 * logs.SIGMA <= s["noise_floor"] <= 1.15 * logs.SIGMA
+    assert s["gap_before"] <= 1.1 * s["noise_floor"]
+
+
 def test_one_record_is_split_in_interleaved_blocks(tmp_path):
     cfg = config.load(logs.write_lab(tmp_path, "one", rate=RATE, seed=5, one_record=True))
     s = diagnose(cfg, tmp_path / "out", model=logs.write_model(tmp_path), echo=_quiet)

@@ -229,7 +229,7 @@ def identify_from_logs(cfg, pieces, out: Path, echo) -> tuple:
          f"{len(res.h_coefficients) - 1}, G {res.structure}, sigma {res.sigma:.4g}")
     u = np.concatenate([p.u for p in pieces])
     model, notes = without_slow_pairs(res.model(), max(p.u.size * p.dt for p in pieces), echo)
-    return model, {"source": "identified", "fit": "whole", "records": list(pieces),
+    return model, {"source": "identified", "fit": "whole", "records": list(pieces), "starts": dict(res.initial_states),
                    "u_range": [float(u.min()), float(u.max())], "notes": list(res.warnings) + notes}
 
 

@@ -124,7 +124,7 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
     id_err = None
     if identified:
         id_err = identification_error(sim_model, origin.pop("records", []), val.design.dt, val.design.settle_s,
-                                      floor.sigma)
+                                      floor.sigma, origin.pop("starts", None))
         echo(f"identification error: gap {id_err['gap']:.4g} on its own records, excess {id_err['excess']:.4g}")
     test = gap.gap_test(gap_ref, n_val, floor, min_ratio=ID_MIN_RATIO if identified else 1.1)
     _echo_baseline(fitter, gap_before, gap_ref, floor, test, echo)
@@ -245,11 +245,13 @@ def second_test(cands, gap_ref, floor, drift_ok: bool, n_eff: float):
                    "significant": bool(best.explained_fraction >= 0.5 and best.score > 0 and ratio > 25.0)}
 
 
-def identification_error(model, records, dt: float, settle_s: float, sigma: float) -> dict:
+def identification_error(model, records, dt: float, settle_s: float, sigma: float, starts=None) -> dict:
     """How far the identified model is from the plant on the experiments it was identified from.
 
-    Each record is simulated from its own input; the first 1.5 settling times and the first fifth of
-    the record (where the rig's state before the record still matters) are skipped. ``excess`` is
+    Each record is simulated from its own input: from the start the identification estimated for
+    it (``starts``: ``{name: {"gear", "rest"}}``, the whole fit's), all of it; otherwise from the
+    default start, with the first 1.5 settling times and the first fifth of the record (where the
+    rig's state before the record still matters) skipped. ``excess`` is
     the RMS above the noise floor ``sigma``. It is reported, not used as a floor: those records carry
     whatever effect the plant has, which the identification could not fit either."""
     residuals = []
@@ -258,8 +260,12 @@ def identification_error(model, records, dt: float, settle_s: float, sigma: floa
         y = np.asarray(r.y, float)
         if u.size < 10 or y.size != u.size:
             continue
-        x = ModelSim(model, dt, [u]).x[0]
-        k0 = max(int(round(1.5 * settle_s / dt)), u.size // 5)
+        st = (starts or {}).get(getattr(r, "name", None))
+        if st is not None:
+            x, k0 = model.simulate(u, dt, gear=st["gear"], rest=st["rest"]).x, 0
+        else:
+            x = ModelSim(model, dt, [u]).x[0]
+            k0 = max(int(round(1.5 * settle_s / dt)), u.size // 5)
         if k0 < u.size - 10:
             residuals.append(y[k0:] - x[k0:])
     if not residuals:
