@@ -57,11 +57,12 @@ def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int 
     frames, t0 = [], 0.0
     for u in parts:
         ue = u if rate is None else rate_limited(u, rate, DT)
-        e = SIGMA * np.sqrt(1 - ar * ar) * rng.standard_normal(u.size)
-        e[0] = SIGMA * rng.standard_normal()
-        for k in range(1, u.size):
-            e[k] += ar * e[k - 1]
-        y = m.simulate(ue, DT).x + e
+        e = rng.standard_normal(u.size)        # white: the same draws as before AR was an option
+        if ar:
+            e[1:] *= np.sqrt(1 - ar * ar)
+            for k in range(1, u.size):
+                e[k] += ar * e[k - 1]
+        y = m.simulate(ue, DT).x + SIGMA * e
         ts = t0 + (np.arange(u.size) + rng.uniform(-0.03, 0.03, u.size)) * DT
         frames.append(pd.DataFrame({"timestamp": pd.Timestamp("2026-03-02T10:00:00") + pd.to_timedelta(ts, "s"),
                                     "command": u * 100 + 2048, "position": y * 500, "temperature": 31.0}))
