@@ -260,7 +260,7 @@ def identification_error(model, records, dt: float, settle_s: float, sigma: floa
         y = np.asarray(r.y, float)
         if u.size < 10 or y.size != u.size:
             continue
-        st = (starts or {}).get(getattr(r, "name", None))
+        st = (starts or {}).get(r.name)
         if st is not None:
             x, k0 = model.simulate(u, dt, gear=st["gear"], rest=st["rest"]).x, 0
         else:

@@ -514,8 +514,8 @@ def _origins(prob: _Problem, theta) -> list[float]:
     nearly the same records. The fit can settle at such a second origin (a quintic h_bar with a
     near-zero half the play away: the paper's plant from a lab log stopped there at 1.5x the noise
     with its borders moved by half the play)."""
-    h = prob.h(theta)
     w = prob.w(theta)
+    h = np.concatenate([[0.0], prob._solve(w)])
     xs = np.linspace(float(w.min()), float(w.max()), 401)
     hv = np.abs(np.polyval(h[::-1], xs))
     tol = 0.1 * float(hv.max())
