@@ -45,18 +45,26 @@ def lab_parts(hold: float = 4.0, lo: float = -1.5, hi: float = 1.5) -> list[np.n
 
 
 def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int = 0, parts=None,
-              one_record: bool = False, ar: float = 0.0):
+              one_record: bool = False, ar: float = 0.0, carry: bool = False, linear: dict | None = None):
     """Write ``NAME.csv`` and its recorded config ``NAME.yaml``; return the config path. ``ar``:
-    the noise's lag-1 coefficient (AR(1) noise of s.d. :data:`SIGMA`; 0 is white)."""
+    the noise's lag-1 coefficient (AR(1) noise of s.d. :data:`SIGMA`; 0 is white). ``carry``: the
+    rate-limited actuator runs on through the pauses (each part starts where the last left it),
+    else it starts at each part's first input. ``linear``: G's ``num, den`` in place of :data:`G`."""
     rng = np.random.default_rng(seed)
+    g = G if linear is None else linear
     m = HWModel(InputNonlinearity(F["type"], F["slope_up"], F["slope_down"], F["d_plus"], F["d_minus"]),
-                LinearBlock(tuple(G["num"]), tuple(G["den"]), 0.0), PolynomialH(tuple(H)))
+                LinearBlock(tuple(g["num"]), tuple(g["den"]), 0.0), PolynomialH(tuple(H)))
     parts = lab_parts() if parts is None else parts
     if one_record:
         parts = [np.concatenate(parts)]
+    session = rate_limited(np.concatenate(parts), rate, DT) if rate is not None and carry else None
+    ends = np.cumsum([u.size for u in parts])
     frames, t0 = [], 0.0
-    for u in parts:
-        ue = u if rate is None else rate_limited(u, rate, DT)
+    for k, u in enumerate(parts):
+        if session is not None:
+            ue = session[ends[k] - u.size:ends[k]]
+        else:
+            ue = u if rate is None else rate_limited(u, rate, DT)
         e = rng.standard_normal(u.size)        # white: the same draws as before AR was an option
         if ar:
             e[1:] *= np.sqrt(1 - ar * ar)

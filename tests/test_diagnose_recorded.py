@@ -87,6 +87,36 @@ def test_one_record_is_split_in_interleaved_blocks(tmp_path):
     assert s["verdict"]["effect"] == "rate_limit" and s["gap_after"] <= 1.15 * s["noise_floor"]
 
 
+def test_a_slow_actuator_carried_across_the_pauses(tmp_path):
+    """A rate limit that needs 12 s to cross the range, its actuator running on through the
+    logger's pauses: each part after the first starts with the actuator still far from its first
+    input. Run through the earlier parts of the file, the true rate fits to the noise."""
+    slow = 0.25
+    cfg = config.load(logs.write_lab(tmp_path, "slow", rate=slow, seed=7, carry=True))
+    s = diagnose(cfg, tmp_path / "out", model=logs.write_model(tmp_path), echo=_quiet)
+    assert s["verdict"]["effect"] == "rate_limit"
+    assert s["gap_after"] <= 1.15 * s["noise_floor"] < s["gap_before"] / 5
+    params = next(c for c in s["candidates"] if c["effect"] == "rate_limit")["params"]
+    assert params["rate"] == pytest.approx(slow, rel=0.05)
+    assert params["carried"] > 0.9
+
+
+def test_a_mode_the_whole_fit_puts_into_g_is_named_a_resonance(tmp_path):
+    """G with a lightly damped pair (5 rad/s, zeta 0.1) that the whole fit from the log takes into
+    its G: no sine band fixed G, so the pair is the resonance effect's to earn back, and it does,
+    at the true mode and at the noise."""
+    wn, zeta = 5.0, 0.1
+    den = np.polymul(logs.G["den"], [1 / wn ** 2, 2 * zeta / wn, 1.0]).tolist()
+    cfg = config.load(logs.write_lab(tmp_path, "mode", seed=8, linear={"num": logs.G["num"], "den": den}))
+    s = diagnose(cfg, tmp_path / "out", echo=_quiet)
+    assert s["verdict"]["effect"] == "resonance"
+    assert s["gap_after"] <= 1.15 * s["noise_floor"]
+    params = next(c for c in s["candidates"] if c["effect"] == "resonance")["params"]
+    assert params["omega_n"] == pytest.approx(wn, rel=0.03)
+    assert params["zeta"] == pytest.approx(zeta, abs=0.02)
+    assert s["test"]["identification_error"]["generalises"]
+
+
 def test_a_staircase_log_names_the_group_and_the_experiment_that_separates_it(tmp_path):
     """Staircases alone show a mild rate limit only as slower transients, which a delay and a
     sensor lag give as well: the verdict names the group, and the next experiment separates it."""

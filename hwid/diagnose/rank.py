@@ -66,7 +66,8 @@ class EffectFitter:
     band : (float, float), optional
         The sine band stage 2 identified G on, rad/s (lightly damped modes outside it are left to
         the ``resonance`` effect; near-cancelling pole-zero pairs below it are taken out of G,
-        :func:`cancel_slow_pairs`).
+        :func:`cancel_slow_pairs`). ``(0, 0)`` for a model whose G no band fixed (identified from
+        logs as a whole): every lightly damped mode is the ``resonance`` effect's.
     strip_identified : bool
         Take lightly damped modes outside ``band`` out of the identified G before the baseline is
         refit (see :func:`alternative_baseline`).
@@ -457,6 +458,11 @@ class EffectFitter:
             logs = tuple(logs) + (False,) * self.n_g
             if not given:
                 starts = [np.r_[np.asarray(th, float), self.g_p] for th in starts]
+                if eff.name == "resonance":
+                    # each mode back on the G it was taken out of (before the baseline's refit):
+                    # the model that had the mode, which a refit G started elsewhere may not
+                    # reach (a mode at zeta 0.02 came back with half the gap left)
+                    starts += [np.r_[np.array(m, float), np.zeros(self.n_g)] for m in self.modes]
         costs = []
         for th in starts:
             th = np.clip(th, lo, hi)
