@@ -10,7 +10,7 @@ Two measurements with :func:`hwid.batch.run_batch` (a local process pool, one wr
 
 CPU time (the workers' and the parent's) and the load average are printed as well: on a machine
 shared with other work the wall times include their load, the CPU times do not. The workers run
-one BLAS thread each (:func:`hwid.batch.limit_blas_threads`, as ``hwid batch`` does).
+one BLAS thread each (:func:`hwid.threads.limit_blas_threads`, as ``hwid batch`` does).
 
 Usage::
 

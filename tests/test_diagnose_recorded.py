@@ -46,6 +46,17 @@ def test_rate_limit_named_from_the_log_with_the_true_model(rate_log):
     assert s["data"]["fit"] == ["rate_part1", "rate_part2"] and s["data"]["validation"] == ["rate_part3", "rate_part4"]
 
 
+def test_effects_fitted_in_workers_give_what_one_process_gives(rate_log, tmp_path, monkeypatch):
+    """The effects are fitted in forked workers on a multi-core machine (hwid/diagnose/rank.py,
+    ``fit_all``); in one process every candidate comes out the same, to the last bit."""
+    s, tmp = rate_log
+    monkeypatch.setenv("HWID_WORKERS", "1")
+    cfg = config.load(tmp / "rate.yaml")
+    one = diagnose(cfg, tmp_path / "out", model=logs.write_model(tmp_path), echo=_quiet)
+    assert [(c["effect"], c["params"], c["gap_after"]) for c in one["candidates"]] == \
+        [(c["effect"], c["params"], c["gap_after"]) for c in s["candidates"]]
+
+
 def test_json_and_h5_of_a_recorded_diagnosis(rate_log):
     s, tmp = rate_log
     data = json.loads((tmp / "out" / "diagnosis.json").read_text())
