@@ -45,11 +45,14 @@ def lab_parts(hold: float = 4.0, lo: float = -1.5, hi: float = 1.5) -> list[np.n
 
 
 def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int = 0, parts=None,
-              one_record: bool = False, ar: float = 0.0, carry: bool = False, linear: dict | None = None):
+              one_record: bool = False, ar: float = 0.0, carry: bool = False, linear: dict | None = None,
+              drift: tuple[float, float] | None = None):
     """Write ``NAME.csv`` and its recorded config ``NAME.yaml``; return the config path. ``ar``:
     the noise's lag-1 coefficient (AR(1) noise of s.d. :data:`SIGMA`; 0 is white). ``carry``: the
     rate-limited actuator runs on through the pauses (each part starts where the last left it),
-    else it starts at each part's first input. ``linear``: G's ``num, den`` in place of :data:`G`."""
+    else it starts at each part's first input. ``linear``: G's ``num, den`` in place of :data:`G`.
+    ``drift``: ``(time_s, std)`` of an additive Ornstein-Uhlenbeck offset in y that runs on through
+    the whole session (drawn after the noise, from its own generator)."""
     rng = np.random.default_rng(seed)
     g = G if linear is None else linear
     m = HWModel(InputNonlinearity(F["type"], F["slope_up"], F["slope_down"], F["d_plus"], F["d_minus"]),
@@ -59,6 +62,13 @@ def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int 
         parts = [np.concatenate(parts)]
     session = rate_limited(np.concatenate(parts), rate, DT) if rate is not None and carry else None
     ends = np.cumsum([u.size for u in parts])
+    if drift is not None:
+        tau, std = drift
+        a = np.exp(-DT / tau)
+        kick = np.random.default_rng(seed + 1000).standard_normal(int(ends[-1])) * std * np.sqrt(1 - a * a)
+        offset = np.zeros(int(ends[-1]))
+        for j in range(1, offset.size):
+            offset[j] = a * offset[j - 1] + kick[j]
     frames, t0 = [], 0.0
     for k, u in enumerate(parts):
         if session is not None:
@@ -71,6 +81,8 @@ def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int 
             for k in range(1, u.size):
                 e[k] += ar * e[k - 1]
         y = m.simulate(ue, DT).x + SIGMA * e
+        if drift is not None:
+            y = y + offset[ends[k] - u.size:ends[k]]
         ts = t0 + (np.arange(u.size) + rng.uniform(-0.03, 0.03, u.size)) * DT
         frames.append(pd.DataFrame({"timestamp": pd.Timestamp("2026-03-02T10:00:00") + pd.to_timedelta(ts, "s"),
                                     "command": u * 100 + 2048, "position": y * 500, "temperature": 31.0}))

@@ -128,6 +128,31 @@ def test_a_mode_the_whole_fit_puts_into_g_is_named_a_resonance(tmp_path):
     assert s["test"]["identification_error"]["generalises"]
 
 
+def test_a_drift_the_holds_do_not_show_is_named_from_the_residual(tmp_path):
+    """An additive drift of a 150 s time scale: the 4-s holds barely show it wander, but the slow
+    part of the residual is a function of time, not of the motion, and has no structure: `drift`,
+    to the noise. The same log without the drift stays `none`."""
+    cfg = config.load(logs.write_lab(tmp_path, "drift", seed=9, drift=(150.0, 0.08)))
+    s = diagnose(cfg, tmp_path / "out", model=logs.write_model(tmp_path), echo=_quiet)
+    assert s["verdict"]["effect"] == "drift"
+    assert s["where"]["repeatability"]["motion_share"] < 0.2
+    assert s["gap_after"] <= 1.5 * s["noise_floor"] < s["gap_before"] / 2
+
+
+def test_slow_motion_share_tells_time_from_motion():
+    """The slow residual of a drift is explained by time, not the motion; that of an effect which
+    depends on the level (a smooth bend) by the motion."""
+    from hwid.diagnose.gap import motion_share
+    rng = np.random.default_rng(2)
+    t = np.arange(6000) * 0.02
+    x = np.sin(0.9 * t) + 0.5 * np.sign(np.sin(0.13 * t))
+    m = np.ones(t.size, bool)
+    walk = np.cumsum(rng.standard_normal(t.size)) * 0.002
+    noise = 0.01 * rng.standard_normal(t.size)
+    assert motion_share([(x + walk + noise, x, m)], 100) < 0.2
+    assert motion_share([(x + 0.05 * x ** 2 + noise, x, m)], 100) > 0.9
+
+
 def test_a_staircase_log_names_the_group_and_the_experiment_that_separates_it(tmp_path):
     """Staircases alone show a mild rate limit only as slower transients, which a delay and a
     sensor lag give as well: the verdict names the group, and the next experiment separates it."""

@@ -414,4 +414,4 @@ def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effe
             "rig_seconds_validation": 0.0, "rig_seconds_identification": 0.0, "seconds_model": seconds_model,
             "seconds_rig_validation": 0.0}
     return conclude(cfg, out, json_path, val, floor, additive, sim_model, origin, effects, cost, t_start, echo,
-                    extra=extra, band=NO_BAND, alike_split=True)
+                    extra=extra, band=NO_BAND, from_logs=True)

@@ -113,14 +113,15 @@ def drift_additivity(pairs, design, sigma: float) -> dict:
 
 
 def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, sim_model, origin: dict, effects,
-             cost: dict, t_start: float, echo, extra=None, band=None, alike_split: bool = False) -> dict:
+             cost: dict, t_start: float, echo, extra=None, band=None, from_logs: bool = False) -> dict:
     """From the experiments on the plant and their noise floor to the written result: the gap test,
     every effect fitted and scored, the verdict and where the gap lies; ``band``: the frequencies
     that identified G, whose lightly damped modes are the plant's own (default the config's sine
-    band; see :class:`hwid.diagnose.rank.EffectFitter`); ``alike_split``: the fit and validation
-    parts are of the same kinds (a log's split), so an identified model that misses validation by
+    band; see :class:`hwid.diagnose.rank.EffectFitter`); ``from_logs``: the experiments are a log's
+    parts, fit and validation of the same kinds, so an identified model that misses validation by
     more than :data:`GENERALISE_RATIO` times its own records does not generalise and no effect is
-    named; ``extra(fitter, cands,
+    named, and a drift may be told from the residual where no repeat shows it
+    (:func:`drift_from_residual`); ``extra(fitter, cands,
     verdict, summary)`` adds what a caller knows beyond that (a recorded plant's data split and next
     experiment). Writes ``diagnosis.h5`` and the JSON; returns the summary."""
     identified = origin.get("source") == "identified"
@@ -139,13 +140,15 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
         id_err = identification_error(sim_model, origin.pop("records", []), val.design.dt, val.design.settle_s,
                                       floor.sigma, origin.pop("starts", None))
         echo(f"identification error: gap {id_err['gap']:.4g} on its own records, excess {id_err['excess']:.4g}")
-        if alike_split and id_err["records"]:
+        if from_logs and id_err["records"]:
             id_err["validation_over_own"] = float(gap_before / max(id_err["gap"], floor.sigma))
             id_err["generalises"] = bool(id_err["validation_over_own"] <= GENERALISE_RATIO)
     test = gap.gap_test(gap_ref, n_val, floor, min_ratio=ID_MIN_RATIO if identified else 1.1)
     _echo_baseline(fitter, gap_before, gap_ref, floor, test, echo)
     cands, gap_ref, test = fit_effects(fitter, sim_model, val, floor, gap_ref, test, n_val, identified, effects, echo)
     drift_ok = bool(floor.slow_z > 10 and additive["additive"])
+    if from_logs and not drift_ok and test.significant and additive["additive"]:
+        drift_ok = drift_from_residual(val, cands, additive, echo)
     if not drift_ok:    # drift listed last: the plant repeats itself, or what changes is not additive
         cands = [c for c in cands if c.effect != "drift"] + [c for c in cands if c.effect == "drift"]
     by_effect = None
@@ -246,6 +249,29 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
     return cands, gap_ref, test
 
 
+def drift_from_residual(val: Validation, cands, additive: dict, echo) -> bool:
+    """Whether a log's slow remainder is a drift though its holds do not show the plant wandering:
+    the model's residual, smoothed over the drift candidate's window, is not a function of the
+    motion (:func:`hwid.diagnose.gap.motion_share` below :data:`hwid.diagnose.gap.MOTION_SHARE`) and
+    no test on the validation residual finds a structure (a varying gain, a loop, a direction of
+    motion: :mod:`hwid.diagnose.residual_structure`). Writes ``motion_share`` into ``additive``."""
+    drift = next((c for c in cands if c.effect == "drift"), None)
+    if drift is None:
+        return False
+    width = max(int(round(float(drift.params["window_s"]) / val.design.dt)), 3)
+    xs = dict(zip(val.fit_idx, val.sim_fit.x)) | dict(zip(val.val_idx, val.sim_val.x))
+    share = gap.motion_share([(val.records[i].y, xs[i], e.mask) for i, e in enumerate(val.exps)], width)
+    additive["motion_share"] = share
+    if not share < gap.MOTION_SHARE:
+        return False
+    structure = _remainder(val, [val.exps[i] for i in val.val_idx])
+    if structure and structure[0]["kind"] != "none":
+        return False
+    echo(f"the holds do not show the plant wandering, but the slow part of the residual is not a function of the "
+         f"motion ({share:.2f} of it explained) and has no structure: a drift is a candidate")
+    return True
+
+
 def second_test(cands, gap_ref, floor, drift_ok: bool, n_eff: float):
     """The second test for an identified model whose refit comes within a few per cent of the floor:
     the likelihood ratio of the best eligible candidate against the refit model on validation data
@@ -342,7 +368,8 @@ def _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, te
         "regions": regions_before,
         "repeatability": {"slow_rms": floor.slow_rms, "slow_z": floor.slow_z, "repeats_differ": bool(floor.slow_z > 10),
                           "difference_follows_output": additive["output_share"],
-                          "fast_difference_follows_output": additive["fast_share"], "additive": additive["additive"]},
+                          "fast_difference_follows_output": additive["fast_share"], "additive": additive["additive"],
+                          "motion_share": additive.get("motion_share", float("nan"))},
     }
     if test.significant:
         trend = gap.trend(val_exps, res_before, floor.sigma, val.design.dt)
