@@ -2,6 +2,9 @@
 are the parallelism, so each worker runs one BLAS thread."""
 from __future__ import annotations
 
+import multiprocessing
+import os
+
 
 def limit_blas_threads():
     """One BLAS thread in this process: the initializer of the local pool's workers (the pool is the
@@ -35,3 +38,43 @@ def limit_blas_threads():
             fn = getattr(lib, name, None)
             if fn is not None:
                 fn(1)
+
+
+def workers() -> int:
+    """Processes independent fits may run on: the cores this process may use (``HWID_WORKERS`` caps
+    them; 1 runs them in this process), and 1 inside a daemonic worker (a batch pool's), which may
+    not start processes of its own or where ``fork`` is not available."""
+    if multiprocessing.current_process().daemon or "fork" not in multiprocessing.get_all_start_methods():
+        return 1
+    try:
+        n = len(os.sched_getaffinity(0))
+    except AttributeError:      # not Linux
+        n = os.cpu_count() or 1
+    cap = os.environ.get("HWID_WORKERS", "").strip()
+    return max(1, min(n, int(cap))) if cap.isdigit() else max(n, 1)
+
+
+# what a forked worker runs (set in the parent just before the fork, so the children share it
+# copy-on-write instead of receiving a pickle of the data)
+_SHARED = None
+
+
+def _run_shared(job):
+    return _SHARED(job)
+
+
+def forked_map(fun, jobs) -> list:
+    """``[fun(job) for job in jobs]``, in forked workers (one BLAS thread each) where
+    :func:`workers` allows more than one; ``fun`` may be a closure (it is not pickled, only the jobs
+    and the results are)."""
+    global _SHARED
+    jobs = list(jobs)
+    n = min(workers(), len(jobs))
+    if n <= 1:
+        return [fun(job) for job in jobs]
+    _SHARED = fun
+    try:
+        with multiprocessing.get_context("fork").Pool(n, initializer=limit_blas_threads) as pool:
+            return pool.map(_run_shared, jobs, chunksize=1)
+    finally:
+        _SHARED = None

@@ -181,3 +181,25 @@ def test_a_fit_stopped_at_h_bars_second_origin_is_moved_back():
     assert rms(back) < 1.1 * sigma
     assert back[0] == pytest.approx(theta[0], abs=0.01)
     assert back[0] - np.exp(back[2]) == pytest.approx(theta[0] - np.exp(theta[2]), abs=0.01)
+
+
+def test_the_fits_run_on_every_core_give_what_one_process_gives(monkeypatch):
+    """The staged choice of type and G structure fits its pairs in forked workers
+    (:func:`hwid.threads.forked_map`); in one process the selection table and the chosen model are
+    the same."""
+    _, truth = _plant(**{"plant.output_nonlinearity.polynomial": [0, 1.0, 0.8, -0.6]})
+    recs = _records(truth, np.random.default_rng(5), 1)
+
+    def fit():
+        return WholeModelFit(max_degree=3, structures=[Structure(1, 0), Structure(2, 0)], staged=True) \
+            .fit(recs).result_
+    monkeypatch.setenv("HWID_WORKERS", "2")
+    many = fit()
+    monkeypatch.setenv("HWID_WORKERS", "1")
+    one = fit()
+    assert [(r["type"], r["structure"], r["degree"]) for r in many.selection] == \
+        [(r["type"], r["structure"], r["degree"]) for r in one.selection]
+    assert [r["rss"] for r in many.selection] == pytest.approx([r["rss"] for r in one.selection], rel=1e-9)
+    assert (many.type, many.structure) == (one.type, one.structure) == ("backlash", "1p0q0z")
+    assert many.d_plus == pytest.approx(one.d_plus, rel=1e-9)
+    assert list(many.h_coefficients) == pytest.approx(list(one.h_coefficients), rel=1e-9)

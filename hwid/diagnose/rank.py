@@ -19,9 +19,6 @@ experiments:
 """
 from __future__ import annotations
 
-import multiprocessing
-import os
-
 import numpy as np
 from scipy.optimize import least_squares
 
@@ -31,7 +28,7 @@ from hwid.diagnose.gap import rms
 from hwid.diagnose.modelsim import ModelSim, simulate_linear
 from hwid.diagnose.verdict import Candidate, bic_score, explained_fraction, rank
 from hwid.model import InputNonlinearity
-from hwid.threads import limit_blas_threads
+from hwid.threads import forked_map
 
 
 class EffectFitter:
@@ -697,46 +694,14 @@ class _GSim(ModelSim):
         return self._x
 
 
-def workers() -> int:
-    """Processes the effects are fitted on: the cores this process may use (``HWID_WORKERS`` caps
-    them; 1 fits in this process)."""
-    try:
-        n = len(os.sched_getaffinity(0))
-    except AttributeError:      # not Linux
-        n = os.cpu_count() or 1
-    cap = os.environ.get("HWID_WORKERS", "").strip()
-    return max(1, min(n, int(cap))) if cap.isdigit() else max(n, 1)
-
-
-# the fitter and effects a forked worker fits from (set in the parent just before the fork, so the
-# children share them copy-on-write instead of receiving a pickle of every simulation)
-_SHARED: tuple | None = None
-
-
-def _fit_shared(name: str) -> Candidate:
-    fitter, effects = _SHARED
-    return fitter.fit(effects[name])
-
-
 def fit_all(fitter: EffectFitter, effects: dict[str, effect_models.Effect], echo=None) -> list[Candidate]:
     """Fit every effect; return the candidates ranked (explained fraction, then score).
 
     The effects' fits are independent (each starts from the same baseline and leaves the fitter as
-    it found it): on several cores they run in forked workers, one effect at a time each, which
-    halves a diagnosis's analysis on the 2-core machine. Where ``fork`` is not available they run
-    here, one after the other."""
-    global _SHARED
+    it found it): on several cores they run in forked workers, one effect at a time each
+    (:func:`hwid.threads.forked_map`), which halves a diagnosis's analysis on the 2-core machine."""
     names = list(effects)
-    n = min(workers(), len(names))
-    if n > 1 and "fork" in multiprocessing.get_all_start_methods() and not multiprocessing.current_process().daemon:
-        _SHARED = (fitter, effects)
-        try:
-            with multiprocessing.get_context("fork").Pool(n, initializer=limit_blas_threads) as pool:
-                out = pool.map(_fit_shared, names, chunksize=1)
-        finally:
-            _SHARED = None
-    else:
-        out = [fitter.fit(effects[name]) for name in names]
+    out = forked_map(lambda name: fitter.fit(effects[name]), names)
     if echo:
         for name, c in zip(names, out):
             echo(f"  {name:18s} explained {c.explained_fraction:5.2f}  gap after {c.gap_after:.4g}  "

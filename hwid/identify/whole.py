@@ -39,6 +39,7 @@ from hwid import HwidError
 from hwid.blocks.linear import LinearBlock
 from hwid.identify.result import WholeResult
 from hwid.model import HWModel, InputNonlinearity
+from hwid.threads import forked_map, workers
 
 
 @dataclass(frozen=True)
@@ -327,18 +328,38 @@ class WholeModelFit:
             table.extend(rows)
             return rows
 
+        def paths(jobs):
+            """:func:`path` for each ``(kind, structure, degrees)``, on every core
+            (:func:`hwid.threads.forked_map`): each path's rows, in order, with the table and the
+            solutions merged as one process would have them."""
+            def one(job):
+                before = {k: id(v) for k, v in solutions.items()}
+                rows = path(*job)
+                return rows, {k: v[1:] for k, v in solutions.items() if before.get(k) != id(v)}
+            if min(workers(), len(jobs)) <= 1:
+                return [path(*job) for job in jobs]
+            out = []
+            for rows, added in forked_map(one, jobs):      # the workers' rows and solutions, merged
+                table.extend(rows)
+                for (kind, structure, degree), (x, aic) in added.items():
+                    if (kind, structure, degree) not in solutions or aic < solutions[kind, structure, degree][2]:
+                        solutions[kind, structure, degree] = (_Problem(records, kind, structure, degree, self.delay),
+                                                              x, aic)
+                out.append(rows)
+            return out
+
         pairs = [(kind, structure) for kind in types for structure in structures]
         if self.staged and start is None and len(pairs) > 1:
             # type and G structure at h_bar's highest degree (a lower one misranks them where h_bar
             # is far from monotonic: the paper's quintic read as a cubic picked a wrong G and gap),
             # then every degree for the best of them
             mid = max(degrees)
-            scored = [(path(kind, structure, [mid])[0]["aic"], kind, structure) for kind, structure in pairs]
+            scored = [(rows[0]["aic"], kind, structure)
+                      for rows, (kind, structure) in zip(paths([(k, g, [mid]) for k, g in pairs]), pairs)]
             pairs = [min(scored, key=lambda x: x[0])[1:]]
             # the winner's row at that degree is fitted again on its degree path below
             table[:] = [r for r in table if (r["type"], r["structure"]) != (pairs[0][0], str(pairs[0][1]))]
-        for kind, structure in pairs:
-            path(kind, structure, list(degrees))
+        paths([(kind, structure, list(degrees)) for kind, structure in pairs])
         key = min(solutions, key=lambda k: solutions[k][2])
         prob, theta, _ = solutions[key]
         lo, hi = prob.bounds(width, span, dt)
