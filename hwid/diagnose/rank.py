@@ -25,7 +25,7 @@ from scipy.optimize import least_squares
 from hwid.diagnose import effects as effect_models
 from hwid.diagnose.baseline import cancel_slow_pairs, mirror_rhp_zeros, split_modes
 from hwid.diagnose.gap import rms
-from hwid.diagnose.modelsim import ModelSim, simulate_linear
+from hwid.diagnose.modelsim import ModelSim, ReblockedSim
 from hwid.diagnose.verdict import Candidate, bic_score, explained_fraction, rank
 from hwid.model import InputNonlinearity
 from hwid.threads import forked_map
@@ -269,7 +269,7 @@ class EffectFitter:
             if len(self._g_cache) > 8:
                 self._g_cache.clear()
             F, G = self.input_nl(m), self.linear(m)
-            hit = (_GSim(self.sfw, F, G), _GSim(self.svw, F, G))
+            hit = (ReblockedSim(self.sfw, F, G), ReblockedSim(self.svw, F, G))
             self._g_cache[key] = hit
         return hit
 
@@ -659,39 +659,6 @@ def _lsq(A, b) -> np.ndarray:
     if np.linalg.cond(AtA) < 1e10:
         return np.linalg.solve(AtA, A.T @ b)
     return np.linalg.lstsq(A, b, rcond=None)[0]
-
-
-class _GSim(ModelSim):
-    """``base`` (a :class:`ModelSim`) with F and G replaced: ``v``, ``w`` and ``x`` computed on first
-    use (an effect that re-simulates from ``u`` or ``v`` never needs the later ones)."""
-
-    def __init__(self, base, F, G):
-        from hwid.model import HWModel
-        self.model = HWModel(F, G, base.model.output)
-        self.dt, self.inputs = base.dt, base.inputs
-        self.u_before = getattr(base, "u_before", None)
-        self.lead = getattr(base, "lead", None)
-        self.pre = getattr(base, "pre", None)
-        self.measured = getattr(base, "measured", None)
-        self._v = self._w = self._x = None
-
-    @property
-    def v(self):
-        if self._v is None:
-            self._v = [self.model.input.apply(u) for u in self.inputs]
-        return self._v
-
-    @property
-    def w(self):
-        if self._w is None:
-            self._w = [simulate_linear(self.model.linear, v, self.dt) for v in self.v]
-        return self._w
-
-    @property
-    def x(self):
-        if self._x is None:
-            self._x = [self.model.output(w) for w in self.w]
-        return self._x
 
 
 def fit_all(fitter: EffectFitter, effects: dict[str, effect_models.Effect], echo=None) -> list[Candidate]:
