@@ -206,3 +206,37 @@ def test_report_says_how_the_log_was_used(rate_log):
     _, tmp = rate_log
     html = write_report(tmp / "out").read_text()
     assert "From the logs alone: split by experiments" in html and "settled holds" in html
+
+
+def _log_validation(residual, x):
+    """A two-record log's :class:`hwid.diagnose.run.Validation` stand-in: the model's output ``x``
+    and the measured output ``x + residual`` on both records, one fit and one validation."""
+    from types import SimpleNamespace
+    u = np.sign(np.sin(0.3 * np.arange(x.size) * logs.DT))
+    exps = [SimpleNamespace(u=u, mask=np.ones(x.size, bool), variable={}) for _ in range(2)]
+    recs = [SimpleNamespace(y=x + r) for r in residual]
+    sim = SimpleNamespace(x=[x])
+    return SimpleNamespace(design=SimpleNamespace(dt=logs.DT), exps=exps, records=recs, fit_idx=[0],
+                           val_idx=[1], sim_fit=sim, sim_val=sim, y_val=[recs[1].y])
+
+
+def test_drift_from_the_residual_needs_a_slow_wander_that_the_smoother_takes_out():
+    """A log's drift without wandering holds (hwid/diagnose/run.py, ``drift_from_residual``): a
+    slow wander in time is a drift when the smoother takes out most of the excess; the same
+    residual with the smoother explaining 0.59 of it (a friction did) is not, and neither is a slow
+    remainder that follows the motion."""
+    from hwid.diagnose.run import drift_from_residual
+    rng = np.random.default_rng(4)
+    n = 4000
+    t = np.arange(n) * logs.DT
+    x = np.sin(0.5 * t) + 0.6 * np.sign(np.sin(0.07 * t))
+    walks = [np.cumsum(rng.standard_normal(n)) * 0.003 + 0.01 * rng.standard_normal(n) for _ in range(2)]
+    drift = lambda share: [Candidate("drift", "noise", {"window_s": 2.0}, 0.01, 0.01, share, 100.0, 1.0)]
+    additive = {}
+    assert drift_from_residual(_log_validation(walks, x), drift(0.95), additive, _quiet)
+    assert additive["motion_share"] < 0.2
+    assert not drift_from_residual(_log_validation(walks, x), drift(0.59), {}, _quiet)
+    bend = [0.08 * x ** 2 + 0.01 * rng.standard_normal(n) for _ in range(2)]
+    additive = {}
+    assert not drift_from_residual(_log_validation(bend, x), drift(0.95), additive, _quiet)
+    assert additive["motion_share"] > 0.9
