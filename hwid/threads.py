@@ -1,5 +1,7 @@
-"""How many threads a worker process uses: the pools (local batches, the diagnosis's effect fits)
-are the parallelism, so each worker runs one BLAS thread."""
+"""Independent fits on every core: how many worker processes (:func:`workers`), a map over forked
+workers (:func:`forked_map`: the diagnosis's effect fits, the whole fit's structures), and one BLAS
+thread in each worker (:func:`limit_blas_threads`, also the local batch pool's initializer), since
+the pools are the parallelism."""
 from __future__ import annotations
 
 import multiprocessing

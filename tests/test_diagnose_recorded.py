@@ -131,7 +131,7 @@ def test_a_mode_the_whole_fit_puts_into_g_is_named_a_resonance(tmp_path):
 def test_a_drift_the_holds_do_not_show_is_named_from_the_residual(tmp_path):
     """An additive drift of a 150 s time scale: the 4-s holds barely show it wander, but the slow
     part of the residual is a function of time, not of the motion, and has no structure: `drift`,
-    to the noise. The same log without the drift stays `none`."""
+    to the noise (the same lab run without it: test_plain_log_is_no_false_alarm)."""
     cfg = config.load(logs.write_lab(tmp_path, "drift", seed=9, drift=(150.0, 0.08)))
     s = diagnose(cfg, tmp_path / "out", model=logs.write_model(tmp_path), echo=_quiet)
     assert s["verdict"]["effect"] == "drift"
@@ -217,7 +217,7 @@ def _log_validation(residual, x):
     recs = [SimpleNamespace(y=x + r) for r in residual]
     sim = SimpleNamespace(x=[x])
     return SimpleNamespace(design=SimpleNamespace(dt=logs.DT), exps=exps, records=recs, fit_idx=[0],
-                           val_idx=[1], sim_fit=sim, sim_val=sim, y_val=[recs[1].y])
+                           val_idx=[1], sim_fit=sim, sim_val=sim, y_val=[recs[1].y], x_model=[x, x])
 
 
 def test_drift_from_the_residual_needs_a_slow_wander_that_the_smoother_takes_out():

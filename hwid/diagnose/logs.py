@@ -387,8 +387,7 @@ def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effe
                        [0] * len(val_idx), pre=[pre[i] for i in val_idx])
     scale = _scale(design, exps, sim_fit, sim_val, recs)
     val = Validation(design, exps, recs, fit_idx, val_idx, sim_fit, sim_val, scale, 0.0, 0.0)
-    xs = dict(zip(fit_idx, sim_fit.x)) | dict(zip(val_idx, sim_val.x))
-    floor, source, pairs = floor_from_logs(exps, recs, [xs[i] for i in range(len(exps))], sim_model.input, design)
+    floor, source, pairs = floor_from_logs(exps, recs, val.x_model, sim_model.input, design)
     echo(f"records split by {how}: fit {', '.join(exps[i].name for i in fit_idx)}; validation "
          f"{', '.join(exps[i].name for i in val_idx)}; noise floor {floor.sigma:.4g} from the {source}")
     additive = drift_additivity(pairs, design, floor.sigma)

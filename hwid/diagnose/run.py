@@ -64,6 +64,12 @@ class Validation:
     def m_val(self) -> list:
         return [self.exps[i].mask for i in self.val_idx]
 
+    @property
+    def x_model(self) -> list:
+        """The model's output on every experiment, in the experiments' order."""
+        xs = dict(zip(self.fit_idx, self.sim_fit.x)) | dict(zip(self.val_idx, self.sim_val.x))
+        return [xs[i] for i in range(len(self.exps))]
+
 
 def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None) -> dict:
     """Diagnose the gap between the plant of ``cfg`` and a model; write ``OUT/diagnosis.h5`` and the
@@ -257,11 +263,10 @@ def drift_from_residual(val: Validation, cands, additive: dict, echo) -> bool:
     """Whether a log's slow remainder is a drift though its holds do not show the plant wandering:
     the drift smoother takes out at least :data:`DRIFT_SHARE` of the excess (it follows any slow
     remainder: one that leaves more is not a slow wander alone), the model's residual, smoothed
-    over the drift candidate's window,
-    is not a function of the motion (:func:`hwid.diagnose.gap.motion_share` below
-    :data:`hwid.diagnose.gap.MOTION_SHARE`) and no test on the validation residual finds a
-    structure (a varying gain, a loop, a direction of motion:
-    :mod:`hwid.diagnose.residual_structure`). Writes ``motion_share`` into ``additive``.
+    over the drift candidate's window, is not a function of the motion
+    (:func:`hwid.diagnose.gap.motion_share` below :data:`hwid.diagnose.gap.MOTION_SHARE`), and no
+    test on the validation residual finds a structure (a varying gain, a loop, a direction of
+    motion: :mod:`hwid.diagnose.residual_structure`). Writes ``motion_share`` into ``additive``.
 
     Judged on a fresh seed without the first condition, a stick-slip friction identified from its
     log (drift explained 0.59, motion share 0.11, no structure found) was called `drift`. A drift
@@ -271,8 +276,7 @@ def drift_from_residual(val: Validation, cands, additive: dict, echo) -> bool:
     if drift is None or drift.explained_fraction < DRIFT_SHARE:
         return False
     width = max(int(round(float(drift.params["window_s"]) / val.design.dt)), 3)
-    xs = dict(zip(val.fit_idx, val.sim_fit.x)) | dict(zip(val.val_idx, val.sim_val.x))
-    share = gap.motion_share([(val.records[i].y, xs[i], e.mask) for i, e in enumerate(val.exps)], width)
+    share = gap.motion_share([(r.y, x, e.mask) for r, x, e in zip(val.records, val.x_model, val.exps)], width)
     additive["motion_share"] = share
     if not share < gap.MOTION_SHARE:
         return False
