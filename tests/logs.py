@@ -50,13 +50,13 @@ def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int 
     """Write ``NAME.csv`` and its recorded config ``NAME.yaml``; return the config path. ``ar``:
     the noise's lag-1 coefficient (AR(1) noise of s.d. :data:`SIGMA`; 0 is white). ``carry``: the
     rate-limited actuator runs on through the pauses (each part starts where the last left it),
-    else it starts at each part's first input. ``linear``: G's ``num, den`` in place of :data:`G`.
+    else it starts at each part's first input. ``linear``: G's ``num, den`` (and ``delay``, s) in place of :data:`G`.
     ``drift``: ``(time_s, std)`` of an additive Ornstein-Uhlenbeck offset in y that runs on through
     the whole session (drawn after the noise, from its own generator)."""
     rng = np.random.default_rng(seed)
     g = G if linear is None else linear
     m = HWModel(InputNonlinearity(F["type"], F["slope_up"], F["slope_down"], F["d_plus"], F["d_minus"]),
-                LinearBlock(tuple(g["num"]), tuple(g["den"]), 0.0), PolynomialH(tuple(H)))
+                LinearBlock(tuple(g["num"]), tuple(g["den"]), float(g.get("delay", 0.0))), PolynomialH(tuple(H)))
     parts = lab_parts() if parts is None else parts
     if one_record:
         parts = [np.concatenate(parts)]

@@ -128,6 +128,39 @@ def test_a_mode_the_whole_fit_puts_into_g_is_named_a_resonance(tmp_path):
     assert s["test"]["identification_error"]["generalises"]
 
 
+def test_a_delay_the_whole_fit_takes_into_g_is_named_a_time_delay(tmp_path):
+    """A transport delay of 0.12 s (6 samples) on the log's rig, identified from the log alone:
+    the whole fit's G carries it as a delay (a rational G alone stood in for it with fast poles
+    and left no gap: `none`), the baseline is refit without it, and `time_delay` earns it back, at
+    the noise. At this noise a fast pole takes part of the lag (0.02 s here): what the log fixes
+    is G's whole low-frequency lag, its delay plus ``a_1 / a_0`` of its denominator, and that is the
+    truth's (``0.625 + 0.12`` s) to half a sample."""
+    delay = 0.12
+    cfg = config.load(logs.write_lab(tmp_path, "delayed", seed=10, linear={**logs.G, "delay": delay}))
+    s = diagnose(cfg, tmp_path / "out", echo=_quiet)
+    assert s["verdict"]["effect"] == "time_delay"
+    assert s["gap_after"] <= 1.15 * s["noise_floor"] and s["gap_after"] < s["gap_model_refit"]  # without it
+    g = s["model"]["linear"]
+    lag = g["delay"] + g["den"][-2] / g["den"][-1] - (g["num"][-2] / g["num"][-1] if len(g["num"]) > 1 else 0.0)
+    assert lag == pytest.approx(logs.G["den"][-2] / logs.G["den"][-1] + delay, abs=0.5 * logs.DT)
+    assert s["model_refit"]["excess_phase_taken_out_s"] == pytest.approx(g["delay"])
+    params = next(c for c in s["candidates"] if c["effect"] == "time_delay")["params"]
+    assert 0.5 * delay < params["delay_s"] <= delay + 0.5 * logs.DT
+
+
+def test_a_g_beyond_the_whole_fits_structures_is_no_false_alarm(tmp_path):
+    """A plain rig whose G (three poles and a zero) none of the whole fit's structures holds: the
+    fit's delay stood in for the missing pole, and taken out of the baseline it left a gap that
+    `sensor_lag` (a pole after h) filled. A delay that fits no better than one more pole in its
+    place is not kept, and the verdict is `none`."""
+    den = np.polymul(logs.G["den"], [0.25, 1.0]).tolist()
+    cfg = config.load(logs.write_lab(tmp_path, "third", seed=11, linear={"num": [2.0, 4.0], "den": den}))
+    s = diagnose(cfg, tmp_path / "out", echo=_quiet)
+    assert s["verdict"]["effect"] == "none"
+    assert s["model"]["linear"]["delay"] == 0.0
+    assert s["gap_before"] <= 1.1 * s["noise_floor"]
+
+
 def test_a_drift_the_holds_do_not_show_is_named_from_the_residual(tmp_path):
     """An additive drift of a 150 s time scale: the 4-s holds barely show it wander, but the slow
     part of the residual is a function of time, not of the motion, and has no structure: `drift`,

@@ -203,3 +203,23 @@ def test_the_fits_run_on_every_core_give_what_one_process_gives(monkeypatch):
     assert (many.type, many.structure) == (one.type, one.structure) == ("backlash", "1p0q0z")
     assert many.d_plus == pytest.approx(one.d_plus, rel=1e-9)
     assert list(many.h_coefficients) == pytest.approx(list(one.h_coefficients), rel=1e-9)
+
+
+@pytest.mark.parametrize("delay, den, kept", [(0.15, [1.0, 2.0], True),
+                                               (0.0, [0.1, 1.2, 2.0], False)])
+def test_a_delay_is_kept_only_where_it_fits_better_than_a_pole(delay, den, kept):
+    """Fitted at one real pole with a delay: a true transport delay of 0.15 s (3 samples) is kept,
+    at the truth; the delay a second-order G's fast pole (10 rad/s) gets from the one-pole
+    structure is replaced by that pole, which fits the records at least as well
+    (:func:`hwid.identify.whole._pole_for_delay`)."""
+    _, truth = _plant(**{"plant.linear.den": den, "plant.linear.num": [den[-1]], "plant.linear.delay": delay})
+    rng = np.random.default_rng(12)
+    res = WholeModelFit(max_degree=3, structures=[Structure(1, 0)], types=("backlash",),
+                        delay=True).fit(_records(truth, rng, 2)).result_
+    if kept:
+        assert res.structure == "1p0q0z"
+        assert res.delay == pytest.approx(delay, abs=0.1 * 0.05)
+    else:
+        assert res.structure == "2p0q0z" and res.delay == 0.0
+        assert np.sort(-np.roots(res.den).real) == pytest.approx([2.0, 10.0], rel=0.05)
+    assert 0.95 < res.sigma / 0.01 < 1.05

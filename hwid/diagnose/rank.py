@@ -135,6 +135,7 @@ class EffectFitter:
                 self._cancel_slow_pairs(band)
                 self._strip_modes(band)
                 self._strip_rhp_zeros()
+                self._strip_delay()
             self.baseline_val = self._refit_predict(None, None, "val")
             self.baseline_fit = self._refit_predict(None, None, "fit")
             self.gap_ref = rms(np.concatenate([(y - x)[m] for y, x, m in zip(self.yv, self.baseline_val, self.mv)]))
@@ -372,6 +373,19 @@ class EffectFitter:
             return
         self._replace_g(F, new, G.den, G.delay)
         self.delay_hint = hint
+
+    def _strip_delay(self) -> None:
+        """Take an identified G's pure delay out of the refit G (:meth:`_strip_rhp_zeros` says why
+        for excess phase; a delay fitted explicitly, as the whole fit from logs does, is the same
+        excess phase by name). The refit G is then re-estimated without it, and the delay is a
+        starting point of ``time_delay``, which must earn it back on the validation data. A
+        delay the refit G's poles can stand in for leaves no gap, and no effect is named."""
+        if self._g_delay <= 0:
+            return
+        F, G = self.input_nl(self.g_p), self.linear(self.g_p)
+        hint = float(G.delay)
+        self._replace_g(F, G.num, G.den, 0.0)
+        self.delay_hint += hint
 
     def _with_x(self, sim, xs):
         new = object.__new__(type(sim))

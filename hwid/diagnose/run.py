@@ -423,8 +423,9 @@ def _remainder(val: Validation, val_exps) -> list[dict]:
 def _echo_baseline(fitter, gap_before, gap_ref, floor, test, echo) -> None:
     """Say what the baseline refit took out of G and what the gap test found."""
     if fitter.delay_hint > 0:
-        echo(f"the refit G had zeros in the right half plane (excess phase, as a delay of {fitter.delay_hint:.3g} s "
-             "gives): mirrored into the left half plane in the baseline, left to the time_delay effect")
+        echo(f"the identified G had excess phase (a pure delay, or zeros in the right half plane; as a delay of "
+             f"{fitter.delay_hint:.3g} s): taken out of the baseline (zeros mirrored into the left half plane), "
+             "left to the time_delay effect")
     for pole, zero in fitter.cancelled_pairs:
         echo(f"G had a pole at {pole:.3g} rad/s and a zero at {zero:.3g} rad/s below the sine band that nearly cancel "
              "(a gain step the sines cannot place): taken out of the baseline")
