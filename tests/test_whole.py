@@ -211,7 +211,7 @@ def test_a_delay_is_kept_only_where_it_fits_better_than_a_pole(delay, den, kept)
     """Fitted at one real pole with a delay: a true transport delay of 0.15 s (3 samples) is kept,
     at the truth; the delay a second-order G's fast pole (10 rad/s) gets from the one-pole
     structure is replaced by that pole, which fits the records at least as well
-    (:func:`hwid.identify.whole._pole_for_delay`)."""
+    (:func:`hwid.identify.whole_delay.pole_for_delay`)."""
     _, truth = _plant(**{"plant.linear.den": den, "plant.linear.num": [den[-1]], "plant.linear.delay": delay})
     rng = np.random.default_rng(12)
     res = WholeModelFit(max_degree=3, structures=[Structure(1, 0)], types=("backlash",),

@@ -28,7 +28,7 @@ one degree of h_bar higher (:meth:`WholeModelFit._result` says why).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
@@ -239,7 +239,8 @@ class WholeModelFit:
         G structures tried (default :data:`STRUCTURES`).
     delay : bool
         Also fit a pure delay of G; the selected fit keeps it only where it fits the records better
-        than one more real pole in its place (:func:`_pole_for_delay`).
+        than one more real pole or pole pair in its place
+        (:func:`hwid.identify.whole_delay.pole_for_delay`).
     types : sequence of str
         Input nonlinearity types tried (``"backlash"``, ``"backlash_inverse"``).
     staged : bool
@@ -381,7 +382,8 @@ class WholeModelFit:
         best = (solutions[key][2], solutions[key][0], solutions[key][1])
         solutions = {k: v[:2] for k, v in solutions.items()}
         _, prob, theta = best
-        pole = _pole_for_delay(prob, theta, width, span, dt, self.max_nfev)
+        from hwid.identify.whole_delay import pole_for_delay
+        pole = pole_for_delay(prob, theta, width, span, dt, self.max_nfev)
         if pole is not None:
             prob, theta, rss = pole
             n, k = prob.y.size, prob.n_outer + prob.degree
@@ -393,24 +395,10 @@ class WholeModelFit:
         return self
 
     def fit_delay_added(self, records, borders=None) -> "WholeModelFit":
-        """:meth:`fit` without a delay, then again with G's delay over the selected type and the
-        structures of no higher order (a delay stands in for poles, it adds none); the better of
-        the two by the information criterion is kept (``result_``, ``problem_``, ``theta_``).
-
-        The fit without a delay is the fallback a delay can only improve on: with the delay free
-        from the start, a search can stop in a worse valley than the same search without it (a
-        second-order G with a resonance on top, from a lab log: 2.2x the noise against 1.1x)."""
-        plain = WholeModelFit(self.max_degree, self.structures, False, self.types, self.max_nfev,
-                              self.staged).fit(records, borders=borders)
-        order = Structure(**_structure_fields(plain.result_.structure)).order
-        kind = plain.result_.type
-        delayed = WholeModelFit(self.max_degree, [s for s in (self.structures or STRUCTURES) if s.order <= order],
-                                True, (kind,), self.max_nfev, self.staged)
-        delayed.fit(records, borders=borders if borders is not None and borders.type == kind else None)
-        best = min((plain, delayed), key=lambda f: min(r["aic"] for r in f.result_.selection))
-        self.problem_, self.theta_ = best.problem_, best.theta_
-        self.result_ = replace(best.result_, selection=plain.result_.selection + delayed.result_.selection)
-        return self
+        """:meth:`fit` without a delay, then with G's delay where it can only improve on that
+        (:func:`hwid.identify.whole_delay.fit_delay_added`)."""
+        from hwid.identify.whole_delay import fit_delay_added
+        return fit_delay_added(self, records, borders)
 
     def _start(self, records, kind, structure, start: HWModel | None, borders=None) -> np.ndarray:
         """Outer start values: from ``start`` where given, else from ``borders`` (G at its default
@@ -603,54 +591,6 @@ def _other_origin(prob: _Problem, theta, lo, hi, max_nfev: int):
         if 2 * sol.cost < best * (1 - 1e-6):
             best, found = 2 * sol.cost, sol.x
     return found
-
-
-def _structure_fields(text: str) -> dict:
-    """``Structure(**...)`` of its string (``"2p1q0z"``)."""
-    poles, rest = text.split("p")
-    pairs, zeros = rest.rstrip("z").split("q")
-    return {"poles": int(poles), "pairs": int(pairs), "zeros": int(zeros)}
-
-
-def _pole_for_delay(prob: _Problem, theta, width: float, span: float, dt: float, max_nfev: int):
-    """The selected fit's delay replaced by one more real pole or one more pole pair, where that
-    fits the records at least as well by the information criterion: ``(problem, theta, rss)`` of
-    the best fit without a delay, else None.
-
-    A pure delay and added dynamics both add phase lag; a delay that fits no better than a pole
-    or a pair in its place is dynamics the structures tried lack, not a dead time, and a diagnosis
-    would then blame the missing dynamics on the time_delay effect: a third-order G with a zero,
-    fitted at order 2 with a delay standing in for the third pole, was called ``sensor_lag``; a
-    second-order G with a lightly damped mode on top, fitted with a well-damped pair and a delay
-    of 0.43 s, left the mode unnamed. A real pole costs what the delay costs; a pair one
-    parameter more, charged as the selection charges G's (``ln n``)."""
-    if not prob.with_delay:
-        return None
-    k = 3 + prob.structure.n_params
-    delay = float(abs(theta[k]))
-    if delay <= 0:
-        return None
-    s = prob.structure
-    t = np.asarray(theta, float)
-    n = prob.y.size
-    best = (float(np.sum(prob.residual(theta) ** 2)), 0, None)     # (rss, extra parameters, fit)
-    rate = np.log(1.0 / max(delay, dt))
-    # the new pair started well damped (group delay 1.4 / wn, the delay's) and lightly damped
-    trials = [(Structure(s.poles + 1, s.pairs, s.zeros), 3 + s.poles, [[rate]]),
-              (Structure(s.poles, s.pairs + 1, s.zeros), 3 + s.poles + 2 * s.pairs,
-               [[np.log(1.4 / max(delay, dt)), np.log(0.7)], [np.log(2.0 / max(delay, dt)), np.log(0.1)]])]
-    for structure, at, inserts in trials:
-        alt = _Problem(prob.records, prob.type, structure, prob.degree, False)
-        lo, hi = alt.bounds(width, span, dt)
-        extra = structure.n_params - s.n_params - 1
-        for ins in inserts:
-            start = np.concatenate([t[:at], ins, t[at:k], t[k + 1:]])
-            sol = optimize.least_squares(alt.residual, np.clip(start, lo + 1e-9, hi - 1e-9), bounds=(lo, hi),
-                                         method="trf", x_scale=1.0, max_nfev=max_nfev)
-            rss = float(sol.fun @ sol.fun)
-            if n * np.log(rss) + extra * np.log(n) <= n * np.log(best[0]) + best[1] * np.log(n):
-                best = (rss, extra, (alt, sol.x, rss))
-    return best[2]
 
 
 def correlation_time(residual, lengths, max_lag: int = 100) -> float:
