@@ -383,9 +383,8 @@ class EffectFitter:
         if self._g_delay <= 0:
             return
         F, G = self.input_nl(self.g_p), self.linear(self.g_p)
-        hint = float(G.delay)
         self._replace_g(F, G.num, G.den, 0.0)
-        self.delay_hint += hint
+        self.delay_hint += float(G.delay)
 
     def _with_x(self, sim, xs):
         new = object.__new__(type(sim))

@@ -318,12 +318,9 @@ class WholeModelFit:
                         sol = trial
                 rss = float(sol.fun @ sol.fun)
                 n, k = prob.y.size, prob.n_outer + degree
-                # BIC's penalty on F, G and the initial states, AIC's on h_bar's coefficients
-                # (the module docstring says why)
-                aic = n * np.log(rss / n) + (k - degree) * np.log(n) + 2 * degree
-                row = {"type": kind, "structure": str(structure) + ("+delay" if self.delay else ""),
-                       "degree": degree, "rss": rss,
-                       "parameters": k, "aic": float(aic)}
+                aic = _criterion(rss, n, k, degree)
+                row = {"type": kind, "structure": self._label(structure), "degree": degree, "rss": rss,
+                       "parameters": k, "aic": aic}
                 if (kind, structure, degree) not in solutions or aic < solutions[kind, structure, degree][2]:
                     solutions[kind, structure, degree] = (prob, sol.x, float(aic))
                 rows.append(row)
@@ -361,8 +358,7 @@ class WholeModelFit:
                       for rows, (kind, structure) in zip(paths([(k, g, [mid]) for k, g in pairs]), pairs)]
             pairs = [min(scored, key=lambda x: x[0])[1:]]
             # the winner's row at that degree is fitted again on its degree path below
-            table[:] = [r for r in table if (r["type"], r["structure"]) !=
-                        (pairs[0][0], str(pairs[0][1]) + ("+delay" if self.delay else ""))]
+            table[:] = [r for r in table if (r["type"], r["structure"]) != (pairs[0][0], self._label(pairs[0][1]))]
         paths([(kind, structure, list(degrees)) for kind, structure in pairs])
         key = min(solutions, key=lambda k: solutions[k][2])
         prob, theta, _ = solutions[key]
@@ -371,7 +367,7 @@ class WholeModelFit:
         if moved is not None:
             # the selected fit sat at another origin of h_bar: its type and structure's degree
             # path again from the one found there, so the degree is chosen among fits there
-            own = (prob.type, str(prob.structure) + ("+delay" if self.delay else ""))
+            own = (prob.type, self._label(prob.structure))
             before = {r["degree"]: r for r in table if (r["type"], r["structure"]) == own}
             table[:] = [r for r in table if (r["type"], r["structure"]) != own]
             for row in path(prob.type, prob.structure, list(degrees), first=moved):
@@ -386,13 +382,16 @@ class WholeModelFit:
         pole = pole_for_delay(prob, theta, width, span, dt, self.max_nfev)
         if pole is not None:
             prob, theta, rss = pole
-            n, k = prob.y.size, prob.n_outer + prob.degree
+            k = prob.n_outer + prob.degree
             table.append({"type": prob.type, "structure": str(prob.structure), "degree": prob.degree, "rss": rss,
-                          "parameters": k, "aic": float(n * np.log(rss / n) + (k - prob.degree) * np.log(n)
-                                                        + 2 * prob.degree)})
+                          "parameters": k, "aic": _criterion(rss, prob.y.size, k, prob.degree)})
         self.problem_, self.theta_ = prob, theta
         self.result_ = self._result(prob, theta, table, solutions.get((prob.type, prob.structure, prob.degree + 1)))
         return self
+
+    def _label(self, structure: Structure) -> str:
+        """A selection-table row's structure: marked ``+delay`` where G's delay was fitted too."""
+        return str(structure) + ("+delay" if self.delay else "")
 
     def fit_delay_added(self, records, borders=None) -> "WholeModelFit":
         """:meth:`fit` without a delay, then with G's delay where it can only improve on that
@@ -490,6 +489,13 @@ class WholeModelFit:
         sd_h = np.sqrt(np.clip(np.diag(cov)[prob.n_outer:], 0, None))
         ci["h_coefficients"] = [(0.0, 0.0)] + [(float(c - z * s), float(c + z * s)) for c, s in zip(h[1:], sd_h)]
         return ci, s2, r, warnings
+
+
+def _criterion(rss: float, n: int, k: int, degree: int) -> float:
+    """The selection's criterion of a fit with ``k`` parameters, ``degree`` of them h_bar's: BIC's
+    penalty on F, G and the initial states, AIC's on h_bar's coefficients (the module docstring
+    says why)."""
+    return float(n * np.log(rss / n) + (k - degree) * np.log(n) + 2 * degree)
 
 
 def _best_states(prob: _Problem, theta) -> np.ndarray:

@@ -28,7 +28,7 @@ def fit_delay_added(fitter: WholeModelFit, records, borders=None) -> WholeModelF
     f = fitter
     plain = WholeModelFit(f.max_degree, f.structures, False, f.types, f.max_nfev, f.staged).fit(records,
                                                                                              borders=borders)
-    order = Structure(**_structure_fields(plain.result_.structure)).order
+    order = plain.problem_.structure.order
     kind = plain.result_.type
     delayed = WholeModelFit(f.max_degree, [s for s in (f.structures or STRUCTURES) if s.order <= order],
                             True, (kind,), f.max_nfev, f.staged)
@@ -37,13 +37,6 @@ def fit_delay_added(fitter: WholeModelFit, records, borders=None) -> WholeModelF
     fitter.problem_, fitter.theta_ = best.problem_, best.theta_
     fitter.result_ = replace(best.result_, selection=plain.result_.selection + delayed.result_.selection)
     return fitter
-
-
-def _structure_fields(text: str) -> dict:
-    """``Structure(**...)`` of its string (``"2p1q0z"``)."""
-    poles, rest = text.split("p")
-    pairs, zeros = rest.rstrip("z").split("q")
-    return {"poles": int(poles), "pairs": int(pairs), "zeros": int(zeros)}
 
 
 def pole_for_delay(prob: _Problem, theta, width: float, span: float, dt: float, max_nfev: int):
