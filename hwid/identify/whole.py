@@ -240,7 +240,9 @@ class WholeModelFit:
     delay : bool
         Also fit a pure delay of G; the selected fit keeps it only where it fits the records better
         than one more real pole or pole pair in its place
-        (:func:`hwid.identify.whole_delay.pole_for_delay`).
+        (:func:`hwid.identify.whole_delay.pole_for_delay`). Without it, a selected G with zeros in
+        the right half plane is tried with one more pole or pair the same way
+        (:func:`~hwid.identify.whole_delay.pole_for_rhp_zero`).
     types : sequence of str
         Input nonlinearity types tried (``"backlash"``, ``"backlash_inverse"``).
     staged : bool
@@ -378,8 +380,8 @@ class WholeModelFit:
         best = (solutions[key][2], solutions[key][0], solutions[key][1])
         solutions = {k: v[:2] for k, v in solutions.items()}
         _, prob, theta = best
-        from hwid.identify.whole_delay import pole_for_delay
-        pole = pole_for_delay(prob, theta, width, span, dt, self.max_nfev)
+        from hwid.identify.whole_delay import pole_for_delay, pole_for_rhp_zero
+        pole = (pole_for_delay if self.delay else pole_for_rhp_zero)(prob, theta, width, span, dt, self.max_nfev)
         if pole is not None:
             prob, theta, rss = pole
             k = prob.n_outer + prob.degree

@@ -1,9 +1,11 @@
-"""G's pure delay in the whole fit (:mod:`hwid.identify.whole`): fitted where it can only improve
-on the fit without it, and kept only where no added dynamics fits as well.
+"""G's excess phase in the whole fit (:mod:`hwid.identify.whole`): a pure delay fitted where it can
+only improve on the fit without it, and a delay or a right-half-plane zero kept only where no
+added dynamics fits as well.
 
 A rational G alone stands in for a transport delay with fast poles the plant does not have, and a
-delay stands in for dynamics the structures tried lack; what tells them apart here is the
-information criterion on the same records, with the fit without a delay as the fallback.
+delay or a zero in the right half plane stands in for dynamics the structures tried lack; what
+tells them apart here is the information criterion on the same records, with the fit without a
+delay as the fallback.
 """
 from __future__ import annotations
 
@@ -57,24 +59,60 @@ def pole_for_delay(prob: _Problem, theta, width: float, span: float, dt: float, 
     delay = float(abs(theta[k]))
     if delay <= 0:
         return None
+    t = np.asarray(theta, float)
+    return _added_dynamics(prob, theta, [np.concatenate([t[:k], t[k + 1:]])], delay, 1, width, span, dt, max_nfev)
+
+
+def pole_for_rhp_zero(prob: _Problem, theta, width: float, span: float, dt: float, max_nfev: int):
+    """A fit without a delay whose G has zeros in the right half plane, tried again with one more
+    real pole or one more pole pair (the zeros started where they are and mirrored into the left
+    half plane): ``(problem, theta, rss)`` of the best that fits the records at least as well by
+    the information criterion, else None.
+
+    A right-half-plane zero ``z`` adds the excess phase of a delay of ``2 / z``
+    (:func:`hwid.diagnose.baseline.mirror_rhp_zeros`), and a diagnosis reads it as one; where the
+    records are better fitted by a pole the structure lacked, that is the plant's own dynamics (a
+    third-order G with a zero at -6, fitted at order two with a zero at +11, was called
+    ``sensor_lag``). A real pole and a pair are charged as the selection charges G's parameters."""
+    if prob.with_delay or prob.structure.zeros == 0:
+        return None
     s = prob.structure
     t = np.asarray(theta, float)
+    zk = 3 + s.poles + 2 * s.pairs
+    zeros = t[zk:zk + s.zeros]
+    if not np.any(zeros < 0):
+        return None
+    mirrored = t.copy()
+    mirrored[zk:zk + s.zeros] = np.abs(zeros)
+    lag = float(np.sum(-2.0 * zeros[zeros < 0]))
+    return _added_dynamics(prob, theta, [t, mirrored], lag, 0, width, span, dt, max_nfev)
+
+
+def _added_dynamics(prob: _Problem, theta, starts, lag: float, freed: int, width: float, span: float,
+                    dt: float, max_nfev: int):
+    """Fits without a delay of ``prob``'s structure with one more real pole and with one more pole
+    pair, each from every one of ``starts`` (``prob``'s parameters without a delay), the new pole
+    started at the phase lag ``lag`` it stands in for and the pair well and lightly damped; the
+    best by the information criterion, where it is at least as good as ``prob``'s own fit
+    (``theta``), as ``(problem, theta, rss)``, else None. ``freed``: parameters the new
+    structures no longer need (1 for a delay)."""
+    s = prob.structure
     n = prob.y.size
     best = (float(np.sum(prob.residual(theta) ** 2)), 0, None)     # (rss, extra parameters, fit)
-    rate = np.log(1.0 / max(delay, dt))
-    # the new pair started well damped (group delay 1.4 / wn, the delay's) and lightly damped
+    rate = np.log(1.0 / max(lag, dt))
     trials = [(Structure(s.poles + 1, s.pairs, s.zeros), 3 + s.poles, [[rate]]),
               (Structure(s.poles, s.pairs + 1, s.zeros), 3 + s.poles + 2 * s.pairs,
-               [[np.log(1.4 / max(delay, dt)), np.log(0.7)], [np.log(2.0 / max(delay, dt)), np.log(0.1)]])]
+               [[np.log(1.4 / max(lag, dt)), np.log(0.7)], [np.log(2.0 / max(lag, dt)), np.log(0.1)]])]
     for structure, at, inserts in trials:
         alt = _Problem(prob.records, prob.type, structure, prob.degree, False)
         lo, hi = alt.bounds(width, span, dt)
-        extra = structure.n_params - s.n_params - 1
-        for ins in inserts:
-            start = np.concatenate([t[:at], ins, t[at:k], t[k + 1:]])
-            sol = optimize.least_squares(alt.residual, np.clip(start, lo + 1e-9, hi - 1e-9), bounds=(lo, hi),
-                                         method="trf", x_scale=1.0, max_nfev=max_nfev)
-            rss = float(sol.fun @ sol.fun)
-            if n * np.log(rss) + extra * np.log(n) <= n * np.log(best[0]) + best[1] * np.log(n):
-                best = (rss, extra, (alt, sol.x, rss))
+        extra = structure.n_params - s.n_params - freed
+        for t in starts:
+            for ins in inserts:
+                start = np.concatenate([t[:at], ins, t[at:]])
+                sol = optimize.least_squares(alt.residual, np.clip(start, lo + 1e-9, hi - 1e-9), bounds=(lo, hi),
+                                             method="trf", x_scale=1.0, max_nfev=max_nfev)
+                rss = float(sol.fun @ sol.fun)
+                if n * np.log(rss) + extra * np.log(n) <= n * np.log(best[0]) + best[1] * np.log(n):
+                    best = (rss, extra, (alt, sol.x, rss))
     return best[2]
