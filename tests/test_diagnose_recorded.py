@@ -112,6 +112,22 @@ def test_a_slow_actuator_carried_across_the_pauses(tmp_path):
     assert params["carried"] > 0.9
 
 
+def test_a_slow_actuator_identified_from_the_log_alone(tmp_path):
+    """A rate limit that needs 30 s to cross the range (0.1 units/s), and no model: the whole fit
+    without a rate mimics it with a G many times slower than the plant's, which the diagnosis's
+    bounded refit cannot bring back (`unexplained`). The whole fit's own rate
+    (:mod:`hwid.identify.whole_rate`) finds it, and `rate_limit`, started there, earns it back at
+    the noise."""
+    slow = 0.1
+    cfg = config.load(logs.write_lab(tmp_path, "slow", rate=slow, seed=12))
+    s = diagnose(cfg, tmp_path / "out", echo=_quiet)
+    assert s["verdict"]["effect"] == "rate_limit"
+    assert s["model"]["input_rate_taken_out"] == pytest.approx(slow, rel=0.1)
+    assert s["gap_after"] <= 1.15 * s["noise_floor"] < s["gap_before"] / 5
+    params = next(c for c in s["candidates"] if c["effect"] == "rate_limit")["params"]
+    assert params["rate"] == pytest.approx(slow, rel=0.05)
+
+
 def test_a_mode_the_whole_fit_puts_into_g_is_named_a_resonance(tmp_path):
     """G with a lightly damped pair (5 rad/s, zeta 0.1) that the whole fit from the log takes into
     its G: no sine band fixed G, so the pair is the resonance effect's to earn back, and it does,

@@ -240,6 +240,7 @@ def identify_from_logs(cfg, pieces, out: Path, echo) -> tuple:
     """The whole-model fit on the fit parts (``whole.h5``); the model and its origin."""
     from hwid.identify.history import identify_recorded
     from hwid.identify.whole import WholeModelFit
+    from hwid.identify.whole_rate import fit_rate_added
     from hwid.model import InputNonlinearity
     from hwid.results import write_whole
     t0 = time.perf_counter()
@@ -257,16 +258,24 @@ def identify_from_logs(cfg, pieces, out: Path, echo) -> tuple:
         borders = None
     # G's pure delay fitted by name as well: a rational G alone stands in for a delay with fast
     # poles the plant does not have, and then no excess phase is left for time_delay to name
-    res = WholeModelFit.from_config(cfg, staged=True).fit_delay_added(pieces, borders=borders).result_
+    fitter = WholeModelFit.from_config(cfg, staged=True).fit_delay_added(pieces, borders=borders)
+    # a slow actuator the fit without it would mimic with a G many times slower than the plant's:
+    # its rate is fitted too, taken out of the model and left to rate_limit as a start
+    rate = fit_rate_added(fitter)
+    res = fitter.result_
     write_whole(out / "whole.h5", cfg, res)
     echo(f"identified the model from the fit records ({time.perf_counter() - t0:.1f} s): {res.type}, "
          f"d+ = {res.d_plus:.4g}, d- = {res.d_minus:.4g}, S^d = {res.slope_down:.4g}, h degree "
          f"{len(res.h_coefficients) - 1}, G {res.structure}" + (f" with a delay of {res.delay:.4g} s" if res.delay > 0 else "")
-         + f", sigma {res.sigma:.4g}")
+         + f", sigma {res.sigma:.4g}" + (f"; the input slews at {rate:.4g} units/s (left to rate_limit)" if rate else ""))
     u = np.concatenate([p.u for p in pieces])
     model, notes = without_slow_pairs(res.model(), max(p.u.size * p.dt for p in pieces), echo)
+    if rate:
+        notes.append(f"the whole fit found the input slewing at {rate:.4g} units/s; the model is G fitted with "
+                     "it, and rate_limit starts from it")
     return model, {"source": "identified", "fit": "whole", "records": list(pieces), "starts": dict(res.initial_states),
-                   "u_range": [float(u.min()), float(u.max())], "notes": list(res.warnings) + notes}
+                   "u_range": [float(u.min()), float(u.max())], "notes": list(res.warnings) + notes,
+                   "input_rate_taken_out": rate or 0.0}
 
 
 def without_slow_pairs(model, longest_s: float, echo) -> tuple:

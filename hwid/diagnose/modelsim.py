@@ -15,27 +15,13 @@ from numba import njit
 from scipy.ndimage import uniform_filter1d
 
 from hwid.blocks.linear import LinearBlock
+from hwid.blocks.slew import slewed
 from hwid.diagnose.experiments import settling_time
 from hwid.diagnose.starts import search_1d
 from hwid.model import HWModel, InputNonlinearity
 
 
 # ------------------------------------------------------------------------------ signal primitives
-
-@njit(cache=True)
-def _rate_limit(u, step, u0):
-    out = np.empty_like(u)
-    prev = u0
-    for k in range(u.shape[0]):
-        d = u[k] - prev
-        if d > step:
-            d = step
-        elif d < -step:
-            d = -step
-        prev = prev + d
-        out[k] = prev
-    return out
-
 
 @njit(cache=True)
 def _play_arrays(lo, hi, v0):
@@ -66,9 +52,8 @@ def _direction_arrays(z, up, dn, u0):
 
 
 def rate_limited(u, rate: float, dt: float) -> np.ndarray:
-    """An actuator slewing at most ``rate`` units/s, starting at ``u[0]``."""
-    u = np.ascontiguousarray(u, float)
-    return _rate_limit(u, float(rate) * dt, float(u[0])) if u.size else u.copy()
+    """An actuator slewing at most ``rate`` units/s, starting at ``u[0]`` (:func:`hwid.blocks.slew.slewed`)."""
+    return slewed(u, rate, dt)
 
 
 def _since_crossed(u, F: InputNonlinearity) -> int:

@@ -91,7 +91,7 @@ class EffectFitter:
 
     def __init__(self, sim_fit, y_fit, m_fit, sim_val, y_val, m_val, names_val, scale, sigma, kappa,
                  max_samples: int = 60000, refit_h: bool = False, refit_g: bool = False, band=None,
-                 strip_identified: bool = False):
+                 strip_identified: bool = False, rate_hint: float = 0.0):
         self.sf, self.sv = sim_fit, sim_val
         self.yf, self.yv = [np.asarray(y, float) for y in y_fit], [np.asarray(y, float) for y in y_val]
         self.mf, self.mv = [np.asarray(m, bool) for m in m_fit], [np.asarray(m, bool) for m in m_val]
@@ -117,6 +117,9 @@ class EffectFitter:
         # group delay of right-half-plane zeros (time_delay)
         self.modes: list[tuple[float, float]] = []
         self.delay_hint = 0.0
+        # the input's slew rate the whole fit from logs found and took out of the model
+        # (:mod:`hwid.identify.whole_rate`): a start of rate_limit, with the identified G
+        self.rate_hint = float(rate_hint)
         self.cancelled_pairs: list = []
         if self.refit_h and refit_g:
             self._init_g(sim_fit.model.input, sim_fit.model.linear)
@@ -477,6 +480,8 @@ class EffectFitter:
                     # the model that had the mode, which a refit G started elsewhere may not
                     # reach (a mode at zeta 0.02 came back with half the gap left)
                     starts += [np.r_[np.array(m, float), np.zeros(self.n_g)] for m in self.modes]
+                if eff.name == "rate_limit" and self.rate_hint > 0:
+                    starts += [np.r_[self.rate_hint, c, np.zeros(self.n_g)] for c in (0.0, 1.0)]
         costs = []
         for th in starts:
             th = np.clip(th, lo, hi)

@@ -143,7 +143,8 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
                                [val.exps[i].mask for i in val.fit_idx], val.sim_val, val.y_val, val.m_val,
                                [val.exps[i].name for i in val.val_idx], val.scale, floor.sigma, floor.kappa,
                                refit_h=identified, refit_g=identified,
-                               band=(_sine_band(cfg) if band is None else band) if identified else None)
+                               band=(_sine_band(cfg) if band is None else band) if identified else None,
+                               rate_hint=float(origin.get("input_rate_taken_out", 0.0)))
     gap_ref = fitter.gap_ref
     id_err = None
     if identified:
@@ -247,7 +248,8 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
     if identified and has_outside_modes(sim_model.linear, fitter.band):
         alternative = rank.EffectFitter(val.sim_fit, fitter.yf, fitter.mf, val.sim_val, val.y_val, val.m_val,
                                         fitter.names_val, val.scale, floor.sigma, floor.kappa, refit_h=True,
-                                        refit_g=True, band=fitter.band, strip_identified=True)
+                                        refit_g=True, band=fitter.band, strip_identified=True,
+                                        rate_hint=fitter.rate_hint)
         echo(f"the identified G has a lightly damped mode outside the band: every effect also fitted "
              f"with it taken out before the refit (that baseline alone: {alternative.gap_ref:.4g})")
         # an effect fitted on the other baseline is not credited with what the switch removes by itself

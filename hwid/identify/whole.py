@@ -37,6 +37,7 @@ from scipy import optimize, stats
 
 from hwid import HwidError
 from hwid.blocks.linear import LinearBlock
+from hwid.blocks.slew import slewed
 from hwid.identify.result import WholeResult
 from hwid.model import HWModel, InputNonlinearity
 from hwid.threads import forked_map, workers
@@ -129,6 +130,9 @@ class _Problem:
     structure: Structure
     degree: int
     with_delay: bool
+    #: the input slews at most a fitted rate before F (a slow actuator the records show; see
+    #: :func:`hwid.identify.whole_rate.fit_rate_added`)
+    with_rate: bool = False
     y: np.ndarray = field(init=False)
 
     def __post_init__(self):
@@ -140,7 +144,13 @@ class _Problem:
 
     @property
     def n_outer(self) -> int:
-        return 3 + self.structure.n_params + int(self.with_delay) + 2 * len(self.records)
+        return self.states_at + 2 * len(self.records)
+
+    @property
+    def states_at(self) -> int:
+        """Index of the first record's initial state in the outer parameters (after F's three,
+        G's, the delay's and the rate's)."""
+        return 3 + self.structure.n_params + int(self.with_delay) + int(self.with_rate)
 
     def unpack(self, theta):
         """``(F, G, [(gear, rest), ...])`` of the outer parameters ``theta``."""
@@ -150,7 +160,7 @@ class _Problem:
         delay = float(abs(theta[k])) if self.with_delay else 0.0
         g = g_from_params(self.structure, theta[3:3 + self.structure.n_params], delay)
         states = []
-        j = k + int(self.with_delay)
+        j = self.states_at
         for r in self.records:
             # a Backlash-Inverse's start is anywhere its branches reach over the record, not only
             # between their values at u[0] (a record that opens with a hold shows it all along)
@@ -163,9 +173,17 @@ class _Problem:
     def w(self, theta) -> np.ndarray:
         f, g, states = self.unpack(theta)
         out = []
+        rate = self.rate(theta)
         for r, (gear, rest) in zip(self.records, states):
-            out.append(g.simulate(f.apply(r.u, gear), r.dt, rest))
+            u = r.u if rate is None else slewed(r.u, rate, r.dt)
+            out.append(g.simulate(f.apply(u, gear), r.dt, rest))
         return np.concatenate(out)[self.keep]
+
+    def rate(self, theta) -> float | None:
+        """The input's slew rate (units/s), or None without one."""
+        if not self.with_rate:
+            return None
+        return float(np.exp(theta[3 + self.structure.n_params + int(self.with_delay)]))
 
     def design(self, w) -> np.ndarray:
         return np.vander(w, self.degree + 1, increasing=True)[:, 1:]
@@ -188,6 +206,9 @@ class _Problem:
         if self.with_delay:
             lo.append(0.0)
             hi.append(0.5 * span_s)
+        if self.with_rate:     # from crossing the input's range in two minutes to in one sample
+            lo.append(np.log(u_width / 120.0))
+            hi.append(np.log(u_width / dt))
         for _ in self.records:
             lo += [-30.0, -np.inf]
             hi += [30.0, np.inf]
@@ -506,7 +527,7 @@ def _best_states(prob: _Problem, theta) -> np.ndarray:
     across its branches' range; one experiment at a time). The gear's
     place enters through a tanh: started on the wrong side, the search stalls where the tanh is flat."""
     theta = np.array(theta, float)
-    j = 3 + prob.structure.n_params + int(prob.with_delay)
+    j = prob.states_at
     best = float(np.sum(prob.residual(theta) ** 2))
     # a Backlash-Inverse's start spans its branches' whole range (_Problem.unpack): finer steps
     places = (-6.0, 0.0, 6.0) if prob.type == "backlash" else \
@@ -582,7 +603,7 @@ def _moved(prob: _Problem, theta, x0: float) -> np.ndarray:
     else:
         d_plus, d_minus = d_plus - x0, d_minus - x0
     t[0], t[2] = d_plus, np.log(max(d_plus - d_minus, 1e-9))
-    j = 3 + prob.structure.n_params + int(prob.with_delay)
+    j = prob.states_at
     t[j + 1::2] -= x0
     return t
 

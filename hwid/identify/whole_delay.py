@@ -14,31 +14,87 @@ from dataclasses import replace
 import numpy as np
 from scipy import optimize
 
-from hwid.identify.whole import STRUCTURES, Structure, WholeModelFit, _Problem
+from hwid.identify.whole import STRUCTURES, Structure, WholeModelFit, _criterion, _Problem, g_from_params, g_params_from
+from hwid.threads import forked_map
 
 
 def fit_delay_added(fitter: WholeModelFit, records, borders=None) -> WholeModelFit:
-    """``fitter``'s :meth:`~WholeModelFit.fit` without a delay, then again with G's delay over the
-    selected type and the structures of no higher order (a delay stands in for poles, it adds
-    none); the better of the two by the information criterion is kept in ``fitter``
-    (``result_``, ``problem_``, ``theta_``; the result's selection table holds both, the delayed
-    rows marked ``+delay``).
+    """``fitter``'s :meth:`~WholeModelFit.fit` without a delay, then with G's delay over the
+    selected type and degree and the structures of no higher order (a delay stands in for poles,
+    it adds none), each started from the fit without it (:func:`_delayed_start`); the better of
+    the two by the information criterion is kept in ``fitter`` (``result_``, ``problem_``,
+    ``theta_``; the result's selection table holds both, the delayed rows marked ``+delay``).
 
     The fit without a delay is the fallback a delay can only improve on: with the delay free
     from the start, a search can stop in a worse valley than the same search without it (a
-    second-order G with a resonance on top, from a lab log: 2.2x the noise against 1.1x)."""
+    second-order G with a resonance on top, from a lab log: 2.2x the noise against 1.1x). Its
+    type, degree, borders, h_bar and initial states are the delayed fits' starts; only G and the
+    delay are new, so no staged selection is run again."""
     f = fitter
     plain = WholeModelFit(f.max_degree, f.structures, False, f.types, f.max_nfev, f.staged).fit(records,
                                                                                              borders=borders)
-    order = plain.problem_.structure.order
-    kind = plain.result_.type
-    delayed = WholeModelFit(f.max_degree, [s for s in (f.structures or STRUCTURES) if s.order <= order],
-                            True, (kind,), f.max_nfev, f.staged)
-    delayed.fit(records, borders=borders if borders is not None and borders.type == kind else None)
-    best = min((plain, delayed), key=lambda w: min(r["aic"] for r in w.result_.selection))
-    fitter.problem_, fitter.theta_ = best.problem_, best.theta_
-    fitter.result_ = replace(best.result_, selection=plain.result_.selection + delayed.result_.selection)
+    base, theta = plain.problem_, np.asarray(plain.theta_, float)
+    records = base.records
+    span = max(r.u.size * r.dt for r in records)
+    dt = min(r.dt for r in records)
+    width = float(np.ptp(np.concatenate([r.u for r in records]))) or 1.0
+    delayed = WholeModelFit(f.max_degree, f.structures, True, (base.type,), f.max_nfev, f.staged)
+    structures = [s for s in (f.structures or STRUCTURES) if s.order <= base.structure.order]
+
+    def one(structure):
+        prob = _Problem(records, base.type, structure, base.degree, True)
+        lo, hi = prob.bounds(width, span, dt)
+        sol = optimize.least_squares(prob.residual, np.clip(_delayed_start(base, theta, structure, span, dt),
+                                                            lo + 1e-9, hi - 1e-9),
+                                     bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=f.max_nfev)
+        return sol.x, float(sol.fun @ sol.fun)
+
+    n = base.y.size
+    rows, fits = [], []
+    for structure, (x, rss) in zip(structures, forked_map(one, structures)):
+        prob = _Problem(records, base.type, structure, base.degree, True)
+        k = prob.n_outer + base.degree
+        rows.append({"type": base.type, "structure": delayed._label(structure), "degree": base.degree,
+                     "rss": rss, "parameters": k, "aic": _criterion(rss, n, k, base.degree)})
+        fits.append((rows[-1]["aic"], prob, x))
+    aic, prob, x = min(fits, key=lambda t: t[0])
+    table = list(plain.result_.selection) + rows
+    if aic >= min(r["aic"] for r in plain.result_.selection):
+        fitter.problem_, fitter.theta_ = plain.problem_, plain.theta_
+        fitter.result_ = replace(plain.result_, selection=tuple(table))
+        return fitter
+    pole = pole_for_delay(prob, x, width, span, dt, f.max_nfev)
+    if pole is not None:
+        prob, x, rss = pole
+        k = prob.n_outer + prob.degree
+        table.append({"type": prob.type, "structure": str(prob.structure), "degree": prob.degree, "rss": rss,
+                      "parameters": k, "aic": _criterion(rss, n, k, prob.degree)})
+    fitter.problem_, fitter.theta_ = prob, x
+    fitter.result_ = delayed._result(prob, x, table)
     return fitter
+
+
+def _delayed_start(base: _Problem, theta, structure: Structure, span: float, dt: float) -> np.ndarray:
+    """Start of a fit with G's delay from the fit ``theta`` of ``base`` (no delay): its borders and
+    initial states; G of ``structure`` from its slowest real poles and pairs and its zeros (a
+    structure's default where it lacks them), and the delay the group delay at ``w = 0`` of the
+    poles and pairs left out (the lag a delay in their place must give)."""
+    G = g_from_params(base.structure, theta[3:3 + base.structure.n_params])
+    poles = np.roots(G.den)
+    real = sorted(float(-q.real) for q in poles if abs(q.imag) < 1e-9)
+    pairs = sorted((abs(q), -q.real / abs(q)) for q in poles if q.imag > 1e-9)
+    zeros = [float(-1.0 / z.real) for z in np.roots(np.trim_zeros(np.asarray(G.num, float), "f"))
+             if abs(z.imag) < 1e-9 and abs(z.real) > 1e-12]
+    p = g_params_from(structure, None, span, dt)
+    if len(real) >= structure.poles and len(pairs) >= structure.pairs and len(zeros) >= structure.zeros:
+        p = np.array([np.log(r) for r in real[:structure.poles]]
+                     + [v for wn, z in pairs[:structure.pairs] for v in (np.log(wn), np.log(max(z, 1e-3)))]
+                     + zeros[:structure.zeros], float)
+        lag = sum(1.0 / r for r in real[structure.poles:]) + sum(2 * z / wn for wn, z in pairs[structure.pairs:])
+    else:
+        lag = 0.0
+    k = 3 + base.structure.n_params
+    return np.concatenate([theta[:3], p, [lag], theta[k:]])
 
 
 def pole_for_delay(prob: _Problem, theta, width: float, span: float, dt: float, max_nfev: int):
