@@ -266,8 +266,9 @@ def identify_from_logs(cfg, pieces, out: Path, echo) -> tuple:
     write_whole(out / "whole.h5", cfg, res)
     echo(f"identified the model from the fit records ({time.perf_counter() - t0:.1f} s): {res.type}, "
          f"d+ = {res.d_plus:.4g}, d- = {res.d_minus:.4g}, S^d = {res.slope_down:.4g}, h degree "
-         f"{len(res.h_coefficients) - 1}, G {res.structure}" + (f" with a delay of {res.delay:.4g} s" if res.delay > 0 else "")
-         + f", sigma {res.sigma:.4g}" + (f"; the input slews at {rate:.4g} units/s (left to rate_limit)" if rate else ""))
+         f"{len(res.h_coefficients) - 1}, G {res.structure}"
+         + (f" with a delay of {res.delay:.4g} s" if res.delay > 0 else "") + f", sigma {res.sigma:.4g}"
+         + (f"; the input slews at {rate:.4g} units/s (left to rate_limit)" if rate else ""))
     u = np.concatenate([p.u for p in pieces])
     model, notes = without_slow_pairs(res.model(), max(p.u.size * p.dt for p in pieces), echo)
     if rate:

@@ -23,8 +23,6 @@ from hwid.threads import forked_map
 #: the rates the fit starts from: this many, from crossing the input's range in two minutes to
 #: crossing it in ten samples
 RATE_POINTS = 8
-#: the best starts (over types and structures, each with its gear's start placed) descended
-DESCENTS = 4
 
 
 def fit_rate_added(fitter: WholeModelFit) -> float | None:
@@ -34,10 +32,12 @@ def fit_rate_added(fitter: WholeModelFit) -> float | None:
     it has bent F, G and h to mimic the slow actuator (the rig above came out a Backlash-Inverse
     of slope 4.3 for a Backlash of slope 0.67), so each type and structure starts from the border
     grid and G's default (:meth:`WholeModelFit._start`), at the best of ``RATE_POINTS`` rates,
-    and the best ``DESCENTS`` of those are descended. The rate is kept where the criterion prefers the fit
-    with it: ``fitter`` then holds that fit (``problem_``, ``theta_``, ``result_``, whose table
-    gains the rows marked ``+rate``) and the rate is returned; else None and ``fitter`` keeps its
-    fit (its table gains the rows)."""
+    and every one is descended (on a third-order rig slewing at 0.22 units/s, the best four
+    starts all stopped in other valleys: a Backlash-Inverse at 0.06 units/s, 4.8x the noise; the
+    fourteen, 5-8 s in all, found 0.236 at 1.45x). The rate is kept where the criterion
+    prefers the fit with it: ``fitter`` then holds that fit (``problem_``, ``theta_``,
+    ``result_``, whose table gains the rows marked ``+rate``) and the rate is returned; else None
+    and ``fitter`` keeps its fit (its table gains the rows)."""
     base = fitter.problem_
     records = base.records
     span = max(r.u.size * r.dt for r in records)
@@ -55,15 +55,13 @@ def fit_rate_added(fitter: WholeModelFit) -> float | None:
             costs = [float(np.sum(prob.residual(t) ** 2)) for t in trials]
             t0 = _best_states(prob, trials[int(np.argmin(costs))])
             starts.append((float(np.sum(prob.residual(t0) ** 2)), kind, s, t0))
-    starts.sort(key=lambda c: c[0])
-    starts = starts[:DESCENTS]
 
     def one(job):
         _, kind, s, t0 = job
         prob = _Problem(records, kind, s, base.degree, base.with_delay, True)
         lo, hi = prob.bounds(width, span, dt)
-        sol = optimize.least_squares(prob.residual, np.clip(t0, lo + 1e-9, hi - 1e-9), bounds=(lo, hi), method="trf", x_scale=1.0,
-                                     max_nfev=fitter.max_nfev)
+        sol = optimize.least_squares(prob.residual, np.clip(t0, lo + 1e-9, hi - 1e-9), bounds=(lo, hi),
+                                     method="trf", x_scale=1.0, max_nfev=fitter.max_nfev)
         return sol.x, float(sol.fun @ sol.fun)
 
     n = base.y.size
