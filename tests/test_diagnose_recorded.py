@@ -123,6 +123,7 @@ def test_a_slow_actuator_identified_from_the_log_alone(tmp_path):
     s = diagnose(cfg, tmp_path / "out", echo=_quiet)
     assert s["verdict"]["effect"] == "rate_limit"
     assert s["model"]["input_rate_taken_out"] == pytest.approx(slow, rel=0.1)
+    assert any("slews" in note for note in s["model"]["notes"])     # whole.h5's warning, too
     assert s["gap_after"] <= 1.15 * s["noise_floor"] < s["gap_before"] / 5
     params = next(c for c in s["candidates"] if c["effect"] == "rate_limit")["params"]
     assert params["rate"] == pytest.approx(slow, rel=0.05)

@@ -271,9 +271,6 @@ def identify_from_logs(cfg, pieces, out: Path, echo) -> tuple:
          + (f"; the input slews at {rate:.4g} units/s (left to rate_limit)" if rate else ""))
     u = np.concatenate([p.u for p in pieces])
     model, notes = without_slow_pairs(res.model(), max(p.u.size * p.dt for p in pieces), echo)
-    if rate:
-        notes.append(f"the whole fit found the input slewing at {rate:.4g} units/s; the model is G fitted with "
-                     "it, and rate_limit starts from it")
     return model, {"source": "identified", "fit": "whole", "records": list(pieces), "starts": dict(res.initial_states),
                    "u_range": [float(u.min()), float(u.max())], "notes": list(res.warnings) + notes,
                    "input_rate_taken_out": rate or 0.0}

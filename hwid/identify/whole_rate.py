@@ -78,5 +78,9 @@ def fit_rate_added(fitter: WholeModelFit) -> float | None:
         fitter.result_ = replace(fitter.result_, selection=tuple(table))
         return None
     fitter.problem_, fitter.theta_ = prob, x
-    fitter.result_ = fitter._result(prob, x, table)
+    res = fitter._result(prob, x, table)
+    # the result's model has no slew: say so where the result is read (whole.h5, the JSON's notes)
+    fitter.result_ = replace(res, warnings=res.warnings + (
+        f"the input slews at {prob.rate(x):.4g} units/s in this fit; F, G and h are fitted with it, "
+        "and the model here leaves it out",))
     return prob.rate(x)
