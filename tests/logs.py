@@ -12,7 +12,7 @@ import yaml
 
 from hwid.blocks.linear import LinearBlock
 from hwid.blocks.static import PolynomialH
-from hwid.diagnose.modelsim import rate_limited
+from hwid.blocks.slew import slewed
 from hwid.model import HWModel, InputNonlinearity
 
 DT = 0.02
@@ -60,7 +60,7 @@ def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int 
     parts = lab_parts() if parts is None else parts
     if one_record:
         parts = [np.concatenate(parts)]
-    session = rate_limited(np.concatenate(parts), rate, DT) if rate is not None and carry else None
+    session = slewed(np.concatenate(parts), rate, DT) if rate is not None and carry else None
     ends = np.cumsum([u.size for u in parts])
     if drift is not None:
         tau, std = drift
@@ -74,7 +74,7 @@ def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int 
         if session is not None:
             ue = session[ends[k] - u.size:ends[k]]
         else:
-            ue = u if rate is None else rate_limited(u, rate, DT)
+            ue = u if rate is None else slewed(u, rate, DT)
         e = rng.standard_normal(u.size)        # white: the same draws as before AR was an option
         if ar:
             e[1:] *= np.sqrt(1 - ar * ar)

@@ -23,8 +23,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hwid.blocks.linear import LinearBlock
+from hwid.blocks.slew import slewed
 from hwid.diagnose.modelsim import (ModelSim, _direction_arrays, _play_arrays, _since_crossed, deadzone, first_order,
-                                    rate_limited, smooth)
+                                    smooth)
 from hwid.model import InputNonlinearity
 
 CATALOGUE = ("input_saturation", "rate_limit", "input_deadzone", "curved_borders", "time_delay",
@@ -194,14 +195,14 @@ class RateLimit(Effect):
 
     def simulate(self, sim, theta, i):
         u, c, prev = sim.inputs[i], float(theta[1]), sim.before(i)
-        fresh = sim.from_input(sim.actuate(i, lambda a: rate_limited(a, theta[0], sim.dt)), i=i)
+        fresh = sim.from_input(sim.actuate(i, lambda a: slewed(a, theta[0], sim.dt)), i=i)
         if c <= 0 or prev is None or not prev.size:
             return fresh
         # the actuator through the whole session before; the gear from the data where this call's
         # moves leave its start open (the rig may have parked it between calls), else the chain
         # from where the actuator last crossed the play both ways (before that, nothing it did is
         # remembered)
-        act = rate_limited(np.concatenate([prev, u]), theta[0], sim.dt)
+        act = slewed(np.concatenate([prev, u]), theta[0], sim.dt)
         call = act[prev.size:]
         g0 = sim.gear_start(call, i)
         if g0 is not None:

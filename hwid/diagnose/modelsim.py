@@ -15,7 +15,6 @@ from numba import njit
 from scipy.ndimage import uniform_filter1d
 
 from hwid.blocks.linear import LinearBlock
-from hwid.blocks.slew import slewed
 from hwid.diagnose.experiments import settling_time
 from hwid.diagnose.starts import search_1d
 from hwid.model import HWModel, InputNonlinearity
@@ -49,11 +48,6 @@ def _direction_arrays(z, up, dn, u0):
                 prev = dn[k]
         out[k] = prev
     return out
-
-
-def rate_limited(u, rate: float, dt: float) -> np.ndarray:
-    """An actuator slewing at most ``rate`` units/s, starting at ``u[0]`` (:func:`hwid.blocks.slew.slewed`)."""
-    return slewed(u, rate, dt)
 
 
 def _since_crossed(u, F: InputNonlinearity) -> int:

@@ -150,7 +150,12 @@ class _Problem:
     def states_at(self) -> int:
         """Index of the first record's initial state in the outer parameters (after F's three,
         G's, the delay's and the rate's)."""
-        return 3 + self.structure.n_params + int(self.with_delay) + int(self.with_rate)
+        return self.rate_at + int(self.with_rate)
+
+    @property
+    def rate_at(self) -> int:
+        """Index of the slew rate's logarithm in the outer parameters (where it has one)."""
+        return 3 + self.structure.n_params + int(self.with_delay)
 
     def unpack(self, theta):
         """``(F, G, [(gear, rest), ...])`` of the outer parameters ``theta``."""
@@ -183,7 +188,7 @@ class _Problem:
         """The input's slew rate (units/s), or None without one."""
         if not self.with_rate:
             return None
-        return float(np.exp(theta[3 + self.structure.n_params + int(self.with_delay)]))
+        return float(np.exp(theta[self.rate_at]))
 
     def design(self, w) -> np.ndarray:
         return np.vander(w, self.degree + 1, increasing=True)[:, 1:]
@@ -312,9 +317,7 @@ class WholeModelFit:
                 structures = [own]
             p = len(start.output.coefficients) - 1
             degrees = range(max(1, p - 1), min(self.max_degree, p + 1) + 1)
-        span = max(r.u.size * r.dt for r in records)
-        dt = min(r.dt for r in records)
-        width = float(np.ptp(np.concatenate([r.u for r in records]))) or 1.0
+        span, dt, width = _extent(records)
         table, solutions = [], {}
 
         def path(kind, structure, degs, first=None):
@@ -339,11 +342,8 @@ class WholeModelFit:
                                                    max_nfev=self.max_nfev)
                     if sol is None or trial.cost < sol.cost:
                         sol = trial
-                rss = float(sol.fun @ sol.fun)
-                n, k = prob.y.size, prob.n_outer + degree
-                aic = _criterion(rss, n, k, degree)
-                row = {"type": kind, "structure": self._label(structure), "degree": degree, "rss": rss,
-                       "parameters": k, "aic": aic}
+                row = _row(prob, float(sol.fun @ sol.fun), self._label(structure))
+                aic = row["aic"]
                 if (kind, structure, degree) not in solutions or aic < solutions[kind, structure, degree][2]:
                     solutions[kind, structure, degree] = (prob, sol.x, float(aic))
                 rows.append(row)
@@ -405,9 +405,7 @@ class WholeModelFit:
         pole = (pole_for_delay if self.delay else pole_for_rhp_zero)(prob, theta, width, span, dt, self.max_nfev)
         if pole is not None:
             prob, theta, rss = pole
-            k = prob.n_outer + prob.degree
-            table.append({"type": prob.type, "structure": str(prob.structure), "degree": prob.degree, "rss": rss,
-                          "parameters": k, "aic": _criterion(rss, prob.y.size, k, prob.degree)})
+            table.append(_row(prob, rss, str(prob.structure)))
         self.problem_, self.theta_ = prob, theta
         self.result_ = self._result(prob, theta, table, solutions.get((prob.type, prob.structure, prob.degree + 1)))
         return self
@@ -512,6 +510,31 @@ class WholeModelFit:
         sd_h = np.sqrt(np.clip(np.diag(cov)[prob.n_outer:], 0, None))
         ci["h_coefficients"] = [(0.0, 0.0)] + [(float(c - z * s), float(c + z * s)) for c, s in zip(h[1:], sd_h)]
         return ci, s2, r, warnings
+
+
+def _extent(records) -> tuple[float, float, float]:
+    """``(span, dt, width)``: the longest record (s), the shortest sampling time and the input's range."""
+    return (max(r.u.size * r.dt for r in records), min(r.dt for r in records),
+            float(np.ptp(np.concatenate([r.u for r in records]))) or 1.0)
+
+
+def _row(prob: _Problem, rss: float, label: str) -> dict:
+    """A selection-table row of the fit of ``prob`` with residual sum of squares ``rss``."""
+    k = prob.n_outer + prob.degree
+    return {"type": prob.type, "structure": label, "degree": prob.degree, "rss": rss, "parameters": k,
+            "aic": _criterion(rss, prob.y.size, k, prob.degree)}
+
+
+def _descend(probs, starts, max_nfev: int) -> list[tuple[np.ndarray, float]]:
+    """Each ``probs[i]`` fitted from ``starts[i]`` within its bounds, on every core: ``(theta, rss)``."""
+    span, dt, width = _extent(probs[0].records)
+
+    def one(i):
+        lo, hi = probs[i].bounds(width, span, dt)
+        sol = optimize.least_squares(probs[i].residual, np.clip(starts[i], lo + 1e-9, hi - 1e-9), bounds=(lo, hi),
+                                     method="trf", x_scale=1.0, max_nfev=max_nfev)
+        return sol.x, float(sol.fun @ sol.fun)
+    return forked_map(one, range(len(probs)))
 
 
 def _criterion(rss: float, n: int, k: int, degree: int) -> float:

@@ -14,8 +14,8 @@ from dataclasses import replace
 import numpy as np
 from scipy import optimize
 
-from hwid.identify.whole import STRUCTURES, Structure, WholeModelFit, _criterion, _Problem, g_from_params, g_params_from
-from hwid.threads import forked_map
+from hwid.identify.whole import (STRUCTURES, Structure, WholeModelFit, _descend, _extent, _Problem, _row,
+                                 g_from_params, g_params_from)
 
 
 def fit_delay_added(fitter: WholeModelFit, records, borders=None) -> WholeModelFit:
@@ -35,40 +35,23 @@ def fit_delay_added(fitter: WholeModelFit, records, borders=None) -> WholeModelF
                                                                                              borders=borders)
     base, theta = plain.problem_, np.asarray(plain.theta_, float)
     records = base.records
-    span = max(r.u.size * r.dt for r in records)
-    dt = min(r.dt for r in records)
-    width = float(np.ptp(np.concatenate([r.u for r in records]))) or 1.0
+    span, dt, width = _extent(records)
     delayed = WholeModelFit(f.max_degree, f.structures, True, (base.type,), f.max_nfev, f.staged)
-    structures = [s for s in (f.structures or STRUCTURES) if s.order <= base.structure.order]
-
-    def one(structure):
-        prob = _Problem(records, base.type, structure, base.degree, True)
-        lo, hi = prob.bounds(width, span, dt)
-        sol = optimize.least_squares(prob.residual, np.clip(_delayed_start(base, theta, structure, span, dt),
-                                                            lo + 1e-9, hi - 1e-9),
-                                     bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=f.max_nfev)
-        return sol.x, float(sol.fun @ sol.fun)
-
-    n = base.y.size
-    rows, fits = [], []
-    for structure, (x, rss) in zip(structures, forked_map(one, structures)):
-        prob = _Problem(records, base.type, structure, base.degree, True)
-        k = prob.n_outer + base.degree
-        rows.append({"type": base.type, "structure": delayed._label(structure), "degree": base.degree,
-                     "rss": rss, "parameters": k, "aic": _criterion(rss, n, k, base.degree)})
-        fits.append((rows[-1]["aic"], prob, x))
-    aic, prob, x = min(fits, key=lambda t: t[0])
+    probs = [_Problem(records, base.type, s, base.degree, True)
+             for s in (f.structures or STRUCTURES) if s.order <= base.structure.order]
+    fits = _descend(probs, [_delayed_start(base, theta, p.structure, span, dt) for p in probs], f.max_nfev)
+    rows = [_row(p, rss, delayed._label(p.structure)) for p, (_, rss) in zip(probs, fits)]
+    i = int(np.argmin([r["aic"] for r in rows]))
+    prob, x = probs[i], fits[i][0]
     table = list(plain.result_.selection) + rows
-    if aic >= min(r["aic"] for r in plain.result_.selection):
+    if rows[i]["aic"] >= min(r["aic"] for r in plain.result_.selection):
         fitter.problem_, fitter.theta_ = plain.problem_, plain.theta_
         fitter.result_ = replace(plain.result_, selection=tuple(table))
         return fitter
     pole = pole_for_delay(prob, x, width, span, dt, f.max_nfev)
     if pole is not None:
         prob, x, rss = pole
-        k = prob.n_outer + prob.degree
-        table.append({"type": prob.type, "structure": str(prob.structure), "degree": prob.degree, "rss": rss,
-                      "parameters": k, "aic": _criterion(rss, n, k, prob.degree)})
+        table.append(_row(prob, rss, str(prob.structure)))
     fitter.problem_, fitter.theta_ = prob, x
     fitter.result_ = delayed._result(prob, x, table)
     return fitter

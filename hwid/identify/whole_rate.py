@@ -15,10 +15,8 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from scipy import optimize
 
-from hwid.identify.whole import STRUCTURES, WholeModelFit, _best_states, _criterion, _Problem
-from hwid.threads import forked_map
+from hwid.identify.whole import STRUCTURES, WholeModelFit, _best_states, _descend, _extent, _Problem, _row
 
 #: the rates the fit starts from: this many, from crossing the input's range in two minutes to
 #: crossing it in ten samples
@@ -40,41 +38,27 @@ def fit_rate_added(fitter: WholeModelFit) -> float | None:
     and ``fitter`` keeps its fit (its table gains the rows)."""
     base = fitter.problem_
     records = base.records
-    span = max(r.u.size * r.dt for r in records)
-    dt = min(r.dt for r in records)
-    width = float(np.ptp(np.concatenate([r.u for r in records]))) or 1.0
-    structures = [s for s in (fitter.structures or STRUCTURES) if s.order <= base.structure.order]
+    _, dt, width = _extent(records)
     rates = np.log(np.geomspace(width / 120.0, width / (10 * dt), RATE_POINTS))
-    starts = []
+    probs, starts = [], []
     for kind in fitter.types:
-        for s in structures:
+        for s in (fitter.structures or STRUCTURES):
+            if s.order > base.structure.order:
+                continue
             prob = _Problem(records, kind, s, base.degree, base.with_delay, True)
             grid = WholeModelFit(fitter.max_degree, [s], base.with_delay, (kind,))._start(records, kind, s, None)
-            k = 3 + s.n_params + int(base.with_delay)
+            k = prob.rate_at
             trials = [np.concatenate([grid[:k], [r], grid[k:]]) for r in rates]
             costs = [float(np.sum(prob.residual(t) ** 2)) for t in trials]
-            t0 = _best_states(prob, trials[int(np.argmin(costs))])
-            starts.append((float(np.sum(prob.residual(t0) ** 2)), kind, s, t0))
-
-    def one(job):
-        _, kind, s, t0 = job
-        prob = _Problem(records, kind, s, base.degree, base.with_delay, True)
-        lo, hi = prob.bounds(width, span, dt)
-        sol = optimize.least_squares(prob.residual, np.clip(t0, lo + 1e-9, hi - 1e-9), bounds=(lo, hi),
-                                     method="trf", x_scale=1.0, max_nfev=fitter.max_nfev)
-        return sol.x, float(sol.fun @ sol.fun)
-
-    n = base.y.size
-    rows, fits = [], []
-    for (_, kind, s, _), (x, rss) in zip(starts, forked_map(one, starts)):
-        prob = _Problem(records, kind, s, base.degree, base.with_delay, True)
-        kk = prob.n_outer + base.degree
-        rows.append({"type": kind, "structure": str(s) + ("+delay" if base.with_delay else "") + "+rate",
-                     "degree": base.degree, "rss": rss, "parameters": kk, "aic": _criterion(rss, n, kk, base.degree)})
-        fits.append((rows[-1]["aic"], prob, x))
-    aic, prob, x = min(fits, key=lambda t: t[0])
+            probs.append(prob)
+            starts.append(_best_states(prob, trials[int(np.argmin(costs))]))
+    fits = _descend(probs, starts, fitter.max_nfev)
+    rows = [_row(p, rss, str(p.structure) + ("+delay" if base.with_delay else "") + "+rate")
+            for p, (_, rss) in zip(probs, fits)]
+    i = int(np.argmin([r["aic"] for r in rows]))
+    prob, x = probs[i], fits[i][0]
     table = list(fitter.result_.selection) + rows
-    if aic >= min(r["aic"] for r in fitter.result_.selection):
+    if rows[i]["aic"] >= min(r["aic"] for r in fitter.result_.selection):
         fitter.result_ = replace(fitter.result_, selection=tuple(table))
         return None
     fitter.problem_, fitter.theta_ = prob, x
