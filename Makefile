@@ -18,7 +18,7 @@ demo: $(STAMP)
 	$(BIN)/hwid run configs/paper.yaml --out runs/paper
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n 2 --durations=15
+	$(BIN)/python -m pytest -q -n 2 --dist worksteal --durations=15
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_simulate.py

@@ -290,3 +290,28 @@ def test_drift_from_the_residual_needs_a_slow_wander_that_the_smoother_takes_out
     additive = {}
     assert not drift_from_residual(_log_validation(bend, x), drift(0.95), additive, _quiet)
     assert additive["motion_share"] > 0.9
+
+
+
+def test_holds_wander_about_a_model_that_misses_the_plants_state_not_about_one_that_follows_it():
+    """A plant with play returns to level 0 from above and from below and settles 0.2 apart each
+    time; a model without the play ends every such hold alike, so about it the holds at 0 differ
+    far beyond the noise, as a drift would make them. About a model that puts the plant where it
+    is (the play included) they differ by noise alone: the plant repeats itself."""
+    from types import SimpleNamespace
+    from hwid.diagnose.logs import holds_floor
+    rng = np.random.default_rng(5)
+    hold = 200
+    levels = [0.0, 1.0, 0.0, -1.0] * 6
+    u = np.repeat(levels, hold)
+    side = np.repeat([0.0, 1.0, 0.1, -1.0] * 6, hold)          # where a plant with play settles
+    y = side + 0.01 * rng.standard_normal(u.size)
+    rec = SimpleNamespace(u=u, y=y)
+    exp = SimpleNamespace(mask=np.ones(u.size, bool))
+    design = SimpleNamespace(settle_s=0.5, dt=0.02)
+    about_plain, n_repeats, _ = holds_floor([exp], [rec], [u.copy()], design)
+    about_play, _, _ = holds_floor([exp], [rec], [side], design)
+    assert n_repeats >= 12 and about_plain.slow_z > 100
+    assert about_play.slow_z <= 10
+    assert about_play.sigma == pytest.approx(0.01, rel=0.1)
+

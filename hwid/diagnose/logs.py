@@ -316,43 +316,12 @@ def floor_from_logs(exps, recs, xs, F, design) -> tuple:
     if pairs:
         floor, source = gap.noise_floor(pairs, width, y_scale), "repeats"
     else:
-        settle = max(int(round(design.settle_s / design.dt)), 1)
-        x_of = {}
-        for e, r, x in zip(exps, recs, xs):
-            known = x_of.get(id(r), (None, np.zeros(r.u.size, bool)))[1] | e.mask
-            x_of[id(r)] = (x, known)
-        holds, tails, keyed = [], [], {}
-        span = max(float(np.ptp(np.concatenate([x for x, _ in x_of.values()]))), 1e-12)
-        for r in distinct:
-            if id(r) not in x_of:
-                continue
-            x, known = x_of[id(r)]
-            for seg in level_segments(np.asarray(r.u, float)):
-                a, b = seg["start"], seg["stop"]
-                a = max(a + settle, (a + b) // 2)
-                if b - a < 40 or not known[a:b].all():
-                    continue
-                res = (np.asarray(r.y, float) - x)[a:b]
-                holds.append(res)
-                tails.append(x[a:b] - x[b - 1])
-                # the model's settled output at the hold's end, to a thousandth of its span: the
-                # same state of the plant where the model is in the same state
-                key = (round(seg["value"], 9), round(float(x[b - 1]) / span, 3))
-                keyed.setdefault(key, []).append(res)
-        if holds:
-            repeats = [g for g in keyed.values() if len(g) >= 2]
-            # whether the plant wanders at a constant input, where the model is still (within a
-            # quarter of the noise of its end): what the plant does while the model still moves
-            # is the model's to explain
-            first = gap.noise_floor_from_holds(holds, y_scale)
-            still = []
-            for res, tail in zip(holds, tails):
-                moving = np.flatnonzero(np.abs(tail) > 0.25 * first.sigma)
-                still.append(res[int(moving[-1]) + 1 if moving.size else 0:])
-            floor = gap.noise_floor_from_holds(holds, y_scale, repeats, still=still)
+        held = holds_floor(exps, recs, xs, design)
+        if held is not None:
+            floor, n_repeats, n_levels = held
             source = "settled holds"
-            if repeats:
-                source += f" ({sum(len(g) for g in repeats)} of them repeats of {len(repeats)} level(s))"
+            if n_repeats:
+                source += f" ({n_repeats} of them repeats of {n_levels} level(s))"
         else:
             res = [(r.y - x)[e.mask] for e, r, x in zip(exps, recs, xs)]
             floor, source = gap.noise_floor_from_residual(res, y_scale), "residual high-frequency part"
@@ -362,6 +331,51 @@ def floor_from_logs(exps, recs, xs, F, design) -> tuple:
         floor = replace(floor, sigma=float(q / np.sqrt(12.0)))
         source += f" (raised to the output resolution {q:.4g} / sqrt(12))"
     return floor, source, pairs
+
+
+def holds_floor(exps, recs, xs, design):
+    """The noise floor from the settled parts of held inputs (:func:`hwid.diagnose.gap.noise_floor_from_holds`)
+    with the model output ``xs`` on each experiment: its residual there, and whether the plant
+    wanders at a constant input where the model is still or differs between holds where the model
+    puts it in the same state. Returns ``(floor, repeated holds, levels repeated)``, or None where
+    no hold is long enough."""
+    settle = max(int(round(design.settle_s / design.dt)), 1)
+    y_scale = float(np.ptp(np.concatenate([r.y for r in recs])))
+    distinct = list({id(r): r for r in recs}.values())
+    x_of = {}
+    for e, r, x in zip(exps, recs, xs):
+        known = x_of.get(id(r), (None, np.zeros(r.u.size, bool)))[1] | e.mask
+        x_of[id(r)] = (x, known)
+    holds, tails, keyed = [], [], {}
+    span = max(float(np.ptp(np.concatenate([x for x, _ in x_of.values()]))), 1e-12)
+    for r in distinct:
+        if id(r) not in x_of:
+            continue
+        x, known = x_of[id(r)]
+        for seg in level_segments(np.asarray(r.u, float)):
+            a, b = seg["start"], seg["stop"]
+            a = max(a + settle, (a + b) // 2)
+            if b - a < 40 or not known[a:b].all():
+                continue
+            res = (np.asarray(r.y, float) - x)[a:b]
+            holds.append(res)
+            tails.append(x[a:b] - x[b - 1])
+            # the model's settled output at the hold's end, to a thousandth of its span: the
+            # same state of the plant where the model is in the same state
+            key = (round(seg["value"], 9), round(float(x[b - 1]) / span, 3))
+            keyed.setdefault(key, []).append(res)
+    if not holds:
+        return None
+    repeats = [g for g in keyed.values() if len(g) >= 2]
+    # whether the plant wanders at a constant input, where the model is still (within a quarter of
+    # the noise of its end): what the plant does while the model still moves is the model's to explain
+    first = gap.noise_floor_from_holds(holds, y_scale)
+    still = []
+    for res, tail in zip(holds, tails):
+        moving = np.flatnonzero(np.abs(tail) > 0.25 * first.sigma)
+        still.append(res[int(moving[-1]) + 1 if moving.size else 0:])
+    floor = gap.noise_floor_from_holds(holds, y_scale, repeats, still=still)
+    return floor, sum(len(g) for g in repeats), len(repeats)
 
 
 def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effects=None) -> dict:
@@ -422,5 +436,9 @@ def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effe
     cost = {"plant_calls_identification": 0, "plant_calls_validation": 0, "plant_calls_reused": 0,
             "rig_seconds_validation": 0.0, "rig_seconds_identification": 0.0, "seconds_model": seconds_model,
             "seconds_rig_validation": 0.0}
+    def wander(outputs) -> float:
+        held = holds_floor([exps[i] for i in val_idx], [recs[i] for i in val_idx], outputs, design)
+        return float(held[0].slow_z) if held is not None else float("nan")
+
     return conclude(cfg, out, json_path, val, floor, additive, sim_model, origin, effects, cost, t_start, echo,
-                    extra=extra, band=NO_BAND, from_logs=True)
+                    extra=extra, band=NO_BAND, from_logs=True, wander=wander)
