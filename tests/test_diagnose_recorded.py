@@ -290,7 +290,11 @@ def test_drift_from_the_residual_needs_a_slow_wander_that_the_smoother_takes_out
     additive = {}
     assert not drift_from_residual(_log_validation(bend, x), drift(0.95), additive, _quiet)
     assert additive["motion_share"] > 0.9
-
+    # a deterministic candidate explaining most of the excess at a better score is the explanation
+    # the criterion prefers; one that scores lower leaves the drift eligible
+    bent = lambda score: [Candidate("curved_borders", "input", {}, 0.01, 0.01, 0.75, score, 13.0)]
+    assert not drift_from_residual(_log_validation(walks, x), drift(0.95) + bent(120.0), {}, _quiet)
+    assert drift_from_residual(_log_validation(walks, x), drift(0.95) + bent(80.0), {}, _quiet)
 
 
 def test_holds_wander_about_a_model_that_misses_the_plants_state_not_about_one_that_follows_it():
