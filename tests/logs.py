@@ -46,14 +46,13 @@ def lab_parts(hold: float = 4.0, lo: float = -1.5, hi: float = 1.5) -> list[np.n
 
 def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int = 0, parts=None,
               one_record: bool = False, ar: float = 0.0, carry: bool = False, linear: dict | None = None,
-              drift: tuple[float, float] | None = None, deadzone: float = 0.0):
+              drift: tuple[float, float] | None = None):
     """Write ``NAME.csv`` and its recorded config ``NAME.yaml``; return the config path. ``ar``:
     the noise's lag-1 coefficient (AR(1) noise of s.d. :data:`SIGMA`; 0 is white). ``carry``: the
     rate-limited actuator runs on through the pauses (each part starts where the last left it),
     else it starts at each part's first input. ``linear``: G's ``num, den`` (and ``delay``, s) in place of :data:`G`.
     ``drift``: ``(time_s, std)`` of an additive Ornstein-Uhlenbeck offset in y that runs on through
-    the whole session (drawn after the noise, from its own generator). ``deadzone``: the half-width
-    of a dead zone the command passes through before the gear (after the slew)."""
+    the whole session (drawn after the noise, from its own generator)."""
     rng = np.random.default_rng(seed)
     g = G if linear is None else linear
     m = HWModel(InputNonlinearity(F["type"], F["slope_up"], F["slope_down"], F["d_plus"], F["d_minus"]),
@@ -81,8 +80,6 @@ def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int 
             e[1:] *= np.sqrt(1 - ar * ar)
             for k in range(1, u.size):
                 e[k] += ar * e[k - 1]
-        if deadzone:
-            ue = np.sign(ue) * np.maximum(np.abs(ue) - deadzone, 0.0)
         y = m.simulate(ue, DT).x + SIGMA * e
         if drift is not None:
             y = y + offset[ends[k] - u.size:ends[k]]
