@@ -298,7 +298,7 @@ def test_drift_from_the_residual_needs_a_slow_wander_that_the_smoother_takes_out
 
 
 def test_holds_wander_about_a_model_that_misses_the_plants_state_not_about_one_that_follows_it():
-    """A plant with play returns to level 0 from above and from below and settles 0.2 apart each
+    """A plant with play returns to level 0 from above and from below and settles 0.1 apart each
     time; a model without the play ends every such hold alike, so about it the holds at 0 differ
     far beyond the noise, as a drift would make them. About a model that puts the plant where it
     is (the play included) they differ by noise alone: the plant repeats itself."""
@@ -318,4 +318,3 @@ def test_holds_wander_about_a_model_that_misses_the_plants_state_not_about_one_t
     assert n_repeats >= 12 and about_plain.slow_z > 100
     assert about_play.slow_z <= 10
     assert about_play.sigma == pytest.approx(0.01, rel=0.1)
-

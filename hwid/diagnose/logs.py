@@ -436,6 +436,7 @@ def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effe
     cost = {"plant_calls_identification": 0, "plant_calls_validation": 0, "plant_calls_reused": 0,
             "rig_seconds_validation": 0.0, "rig_seconds_identification": 0.0, "seconds_model": seconds_model,
             "seconds_rig_validation": 0.0}
+
     def wander(outputs) -> float:
         held = holds_floor([exps[i] for i in val_idx], [recs[i] for i in val_idx], outputs, design)
         return float(held[0].slow_z) if held is not None else float("nan")
