@@ -496,3 +496,34 @@ def test_degree_above_eq_11_from_the_joint_fit():
     assert_h_inside(res, truth.output)
     four = [s for s in res.fit["selection"] if s["type"] == "backlash" and s["degree"] == 4]
     assert four and four[0]["chi2"] > 10 * res.fit["chi2"]
+
+
+def test_grid_starts_with_a_singular_system_in_the_grid_match_least_squares_point_by_point():
+    """One grid point whose borders put every level at one steady state makes its normal equations
+    singular: the grid's starts are then the minimum-norm least-squares fits of every point (as
+    ``lstsq`` point by point gives them), the best first."""
+    from hwid.identify.joint_fit import grid_starts, grid_V
+    from hwid.identify.stage1_model import LevelData, internal_levels
+    up = np.linspace(-1.2, 1.2, 9)
+    down = up[::-1]
+    all_up, all_down = np.concatenate([[1.2], up]), np.concatenate([[-1.2], down])
+    c = np.array([1.0, 0.2, -0.3])                          # h_bar(v) = v + 0.2 v^2 - 0.3 v^3
+    data0 = LevelData(all_up, all_down, 1, 1, np.zeros(18), np.full(18, 0.01))
+    V = internal_levels("backlash", 0.25, 1.0, -0.25, data0)
+    X = sum(ci * V ** (i + 1) for i, ci in enumerate(c))
+    data = LevelData(all_up, all_down, 1, 1, X, np.full(18, 0.01))
+    P, Vg, step = grid_V("backlash", data)
+    Vg = Vg.copy()
+    Vg[0] = 0.0                                             # every level at one steady state
+    starts = grid_starts("backlash", 3, data, grid=(P, Vg, step), keep=3)
+    w = 1.0 / data.se
+    chi2 = []
+    for v in Vg:
+        A = (v[:, None] ** np.arange(1, 4)) * w[:, None]
+        coef = np.linalg.lstsq(A, data.X * w, rcond=None)[0]
+        chi2.append(float(np.sum((data.X * w - A @ coef) ** 2)))
+    best = int(np.argmin(chi2))
+    assert np.allclose(starts[0][:3], np.linalg.lstsq((Vg[best][:, None] ** np.arange(1, 4)) * w[:, None],
+                                                      data.X * w, rcond=None)[0], atol=1e-6)
+    assert np.allclose(starts[0][3:], P[best])
+    assert len(starts) == 3 and all(np.all(np.isfinite(s)) for s in starts)

@@ -95,7 +95,9 @@ def grid_starts(kind: str, p: int, data: LevelData, grid=None, keep: int = 3) ->
         try:
             C = np.linalg.solve(AtA, Atb[..., None])[..., 0]
         except np.linalg.LinAlgError:
-            C = np.stack([np.linalg.lstsq(a, b, rcond=None)[0] for a in A])
+            # a singular system anywhere in the grid (borders that put every level at one steady
+            # state): the minimum-norm solutions of the whole stack at once, as lstsq's would be
+            C = (np.linalg.pinv(AtA) @ Atb[..., None])[..., 0]
         r = b[None, :] - np.einsum("gni,gi->gn", A, C)
         chi2 = np.einsum("gn,gn->g", r, r)
     chi2 = np.where(np.isfinite(chi2), chi2, np.inf)
