@@ -297,6 +297,45 @@ def test_drift_from_the_residual_needs_a_slow_wander_that_the_smoother_takes_out
     assert drift_from_residual(_log_validation(walks, x), drift(0.95) + bent(80.0), {}, _quiet)
 
 
+def test_a_remainder_of_the_plays_state_is_no_drift_where_a_candidate_explains_half():
+    """Borders bent one way going up and the other going down leave ``0.04 d x`` (``d`` the
+    direction the input last moved): over a staircase up and down, a sawtooth in time that the
+    level and the moves alone leave unexplained (share < 0.2), as a drift's would be. With the
+    held direction the motion explains it all; a drift's wander it does not. Where a deterministic
+    candidate explains half the excess (at a lower score than the smoother's), the remainder of the
+    play's state is then no drift; a wander in time still is."""
+    from types import SimpleNamespace
+    from hwid.diagnose.gap import held_direction, motion_share
+    from hwid.diagnose.run import drift_from_residual
+    rng = np.random.default_rng(7)
+    levels = np.concatenate([np.linspace(-1, 1, 9), np.linspace(1, -1, 9)[1:-1]] * 3)
+    u = np.repeat(levels, 250)
+    x = np.zeros_like(u)
+    for i in range(1, u.size):                      # a first-order G of 0.5 s
+        x[i] = x[i - 1] + logs.DT / 0.5 * (u[i - 1] - x[i - 1])
+    d = held_direction(u)
+    assert held_direction([0, 0, 1, 1, 0.5, 0.5, 0.5, 2]).tolist() == [0, 0, 1, 1, -1, -1, -1, 1]
+    state = [0.04 * d * x + 0.01 * rng.standard_normal(u.size) for _ in range(2)]
+    walk = [np.cumsum(rng.standard_normal(u.size)) * 0.002 + 0.01 * rng.standard_normal(u.size) for _ in range(2)]
+    m = np.ones(u.size, bool)
+    assert motion_share([(x + state[0], x, m, u)], 100) < 0.2
+    assert motion_share([(x + state[0], x, m, u)], 100, held=True) > 0.9
+    assert motion_share([(x + walk[0], x, m, u)], 100, held=True) < 0.2
+
+    def val(residual):
+        exps = [SimpleNamespace(u=u, mask=m, variable={}) for _ in range(2)]
+        recs = [SimpleNamespace(y=x + r) for r in residual]
+        sim = SimpleNamespace(x=[x])
+        return SimpleNamespace(design=SimpleNamespace(dt=logs.DT), exps=exps, records=recs, fit_idx=[0],
+                               val_idx=[1], sim_fit=sim, sim_val=sim, y_val=[recs[1].y], x_model=[x, x])
+    cands = [Candidate("drift", "noise", {"window_s": 2.0}, 0.01, 0.01, 0.95, 100.0, 1.0),
+             Candidate("curved_borders", "input", {}, 0.01, 0.01, 0.6, 80.0, 13.0)]
+    additive = {}
+    assert not drift_from_residual(val(state), cands, additive, _quiet)
+    assert additive["motion_share"] < 0.2 < 0.9 < additive["motion_share_held"]
+    assert drift_from_residual(val(walk), cands, {}, _quiet)
+
+
 def test_holds_wander_about_a_model_that_misses_the_plants_state_not_about_one_that_follows_it():
     """A plant with play returns to level 0 from above and from below and settles 0.1 apart each
     time; a model without the play ends every such hold alike, so about it the holds at 0 differ

@@ -297,7 +297,11 @@ def drift_from_residual(val: Validation, cands, additive: dict, echo) -> bool:
     over the drift candidate's window, is not a function of the motion
     (:func:`hwid.diagnose.gap.motion_share` below :data:`hwid.diagnose.gap.MOTION_SHARE`), and no
     test on the validation residual finds a structure (a varying gain, a loop, a direction of
-    motion: :mod:`hwid.diagnose.residual_structure`). Writes ``motion_share`` into ``additive``.
+    motion: :mod:`hwid.diagnose.residual_structure`). Where a deterministic candidate explains at
+    least half the excess, the slow residual must not follow the motion with the direction the input
+    last moved either (``gap.motion_share(..., held=True)``): a candidate that explains that much
+    makes a remainder of the play's state plausible. Writes ``motion_share`` (and
+    ``motion_share_held``) into ``additive``.
 
     Judged on a fresh seed without the first condition, a stick-slip friction identified from its
     log (drift explained 0.59, motion share 0.11, no structure found) was called `drift`. A drift
@@ -317,10 +321,20 @@ def drift_from_residual(val: Validation, cands, additive: dict, echo) -> bool:
              f"smoother ({rival.score:.4g} against {drift.score:.4g}): a drift is not told from the residual")
         return False
     width = max(int(round(float(drift.params["window_s"]) / val.design.dt)), 3)
-    share = gap.motion_share([(r.y, x, e.mask) for r, x, e in zip(val.records, val.x_model, val.exps)], width)
+    segments = [(r.y, x, e.mask, e.u) for r, x, e in zip(val.records, val.x_model, val.exps)]
+    share = gap.motion_share(segments, width)
     additive["motion_share"] = share
     if not share < gap.MOTION_SHARE:
         return False
+    half = next((c for c in cands if c.effect != "drift" and c.explained_fraction >= 0.5 and c.score > 0), None)
+    if half is not None:
+        held = gap.motion_share(segments, width, held=True)
+        additive["motion_share_held"] = held
+        if not held < gap.MOTION_SHARE:
+            echo(f"{half.effect} explains {half.explained_fraction:.2f} of the excess, and the slow part of the "
+                 f"residual follows the level and the direction the input last moved ({held:.2f} of it "
+                 f"explained): a drift is not told from the residual")
+            return False
     structure = _remainder(val, [val.exps[i] for i in val.val_idx])
     if structure and structure[0]["kind"] != "none":
         return False
@@ -428,8 +442,9 @@ def _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, te
                           "fast_difference_follows_output": additive["fast_share"], "additive": additive["additive"],
                           "motion_share": additive.get("motion_share", float("nan"))},
     }
-    if "slow_z_validation" in additive:
-        where["repeatability"]["slow_z_validation"] = additive["slow_z_validation"]
+    for key in ("slow_z_validation", "motion_share_held"):
+        if key in additive:
+            where["repeatability"][key] = additive[key]
     if test.significant:
         trend = gap.trend(val_exps, res_before, floor.sigma, val.design.dt)
         where["trend"], where["trend_families"] = trend["trend"], trend["families"]
