@@ -86,13 +86,13 @@ class LinearBlock:
         v = np.ascontiguousarray(v, dtype=float)
         if v.size == 0:
             return v.copy()
-        n, lag, frac, Phi, G1, G0, C, D = discretise(tuple(map(float, self.num)), tuple(map(float, self.den)), float(self.delay),
-                                                  float(dt))
+        key = (tuple(map(float, self.num)), tuple(map(float, self.den)), float(self.delay), float(dt))
+        n, lag, frac, Phi, G1, G0, C, D = discretise(*key)
         start = v[0] if rest is None else float(rest)
         if n == 0:  # static gain: w_k = D v(t_k - tau), the delay line holding ``start``
             vd = _delayed(v, lag + (frac != 0.0), start)
             return D * vd
-        x0 = np.linalg.solve(np.eye(n) - Phi, (G1 + G0) * start)
+        x0 = _unit_rest(*key) * start
         if rest is not None:
             vd = _delayed(v, lag, start) if lag else v
             w = _ss_run(vd, Phi, G1, G0, C, D if frac == 0.0 else 0.0, x0, start)
@@ -141,6 +141,15 @@ def _delayed(v: np.ndarray, lag: int, start: float) -> np.ndarray:
     ``start`` when ``lag >= len(v)``)."""
     k = min(lag, v.size)
     return np.concatenate([np.full(k, start), v[: v.size - k]])
+
+
+@lru_cache(maxsize=256)
+def _unit_rest(num: tuple, den: tuple, delay: float, dt: float) -> np.ndarray:
+    """The recursion's state at rest under a unit input, ``(I - Phi)^-1 (Gamma1 + Gamma0)``, cached
+    with :func:`discretise` (a fit simulates one G on every record: solving it each time cost as
+    much as the simulation)."""
+    n, _, _, Phi, G1, G0, _, _ = discretise(num, den, delay, dt)
+    return np.linalg.solve(np.eye(n) - Phi, G1 + G0)
 
 
 @lru_cache(maxsize=256)
