@@ -474,3 +474,40 @@ def test_refit_baseline_without_the_slow_pair_leaves_noise():
     assert len(fitter.linear(fitter.g_p).den) == 3         # second order again: no slow pole left
     # without a band (a trusted simulator's G is not touched) nothing is taken out
     assert EffectFitter(**kw, band=None).cancelled_pairs == []
+
+
+def test_an_input_effect_at_its_null_is_credited_with_nothing():
+    """An input effect's path re-estimates the gear's start where a record leaves it open (here every
+    record opens with a hold inside the play, the plant's gear against the lower border, the
+    model's in the middle) and the refit baseline's does not. A dead zone of zero width is then no
+    effect, yet beats the baseline; measured against the same model without it
+    (``EffectFitter.effect_free_gap``), it removes nothing."""
+    from hwid.blocks.linear import LinearBlock
+    from hwid.blocks.static import PolynomialH
+    from hwid.diagnose.effects import InputDeadzone, Scale
+    from hwid.diagnose.modelsim import ModelSim
+    from hwid.diagnose.rank import EffectFitter
+    from hwid.model import HWModel, InputNonlinearity
+    dt, sigma = 0.1, 0.01
+    F = InputNonlinearity("backlash", 1.0, 1.0, 0.3, -0.3)
+    model = HWModel(F, LinearBlock((1.0,), (2.0, 1.0), 0.0), PolynomialH((0.0, 1.0, 0.0, -0.1)))
+    rng = np.random.default_rng(np.random.SeedSequence(12))
+
+    def record(k):
+        u = np.concatenate([np.zeros(300), np.repeat(rng.uniform(-1.2, 1.2, 8 + k), 150)])
+        v = F.apply(u, -0.3)                                   # gear against the lower border
+        x = np.asarray(model.output(model.linear.simulate(v, dt, rest=-0.3)))
+        return u, x + sigma * rng.standard_normal(u.size)
+    fit, val = [record(k) for k in range(3)], [record(k + 3) for k in range(3)]
+    sf, sv = ModelSim(model, dt, [u for u, _ in fit]), ModelSim(model, dt, [u for u, _ in val])
+    us = np.concatenate([u for u, _ in fit + val])
+    xs = np.concatenate(sf.x + sv.x)
+    sc = Scale(dt, float(us.min()), float(us.max()), float(xs.min()), float(xs.max()), 1.0, 10.0, 0.2,
+               float(us.size * dt), float("nan"), float("nan"))
+    fitter = EffectFitter(sf, [y for _, y in fit], [np.ones(u.size, bool) for u, _ in fit], sv,
+                          [y for _, y in val], [np.ones(u.size, bool) for u, _ in val], ["a", "b", "c"], sc,
+                          sigma, 1.0, refit_h=True, refit_g=True, band=None)
+    null = fitter._score(InputDeadzone(), np.r_[0.0, 0.0, fitter.g_p], 2)
+    assert null.gap_after < 0.9 * fitter.gap_ref              # the path's advantage, not the effect's
+    assert abs(fitter.effect_free_gap(null) - null.gap_after) < 1e-9
+    assert abs(fitter.effect_free_gap(None) - null.gap_after) < 1e-9

@@ -241,7 +241,10 @@ def noise_floor(val: Validation):
 def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val, identified, effects, echo):
     """Every catalogue effect (or the ``effects`` subset) fitted and scored; for an identified G with
     a lightly damped mode outside the band, also from the baseline without it, each effect measured
-    against the better baseline alone. Returns ``(candidates, gap_ref, test)``."""
+    against the better baseline alone. For an identified model, each effect is measured against the
+    best model without an effect found: the refit baseline, or an effect's own joint fit with its
+    effect left out (:meth:`hwid.diagnose.rank.EffectFitter.effect_free_gap`). Returns
+    ``(candidates, gap_ref, test)``."""
     available = catalogue(val.scale)
     if effects is not None:
         unknown = [e for e in effects if e not in available]
@@ -249,6 +252,7 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
             raise HwidError(f"unknown effect(s) {', '.join(unknown)}; the catalogue is {', '.join(CATALOGUE)}")
         available = {k: v for k, v in available.items() if k in effects}
     cands = rank.fit_all(fitter, available, echo=echo)
+    free = min([fitter.effect_free_gap(c) for c in [None, *cands]])
     if identified and has_outside_modes(sim_model.linear, fitter.band):
         alternative = rank.EffectFitter(val.sim_fit, fitter.yf, fitter.mf, val.sim_val, val.y_val, val.m_val,
                                         fitter.names_val, val.scale, floor.sigma, floor.kappa, refit_h=True,
@@ -260,8 +264,17 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
         if alternative.gap_ref < gap_ref:
             gap_ref = alternative.gap_ref
             test = gap.gap_test(gap_ref, n_val, floor, min_ratio=ID_MIN_RATIO)
-        cands = alternative_baseline(cands, rank.fit_all(alternative, available, echo=echo), gap_ref,
-                                          floor.sigma, fitter.n_eff)
+        other = rank.fit_all(alternative, available, echo=echo)
+        free = min([free] + [alternative.effect_free_gap(c) for c in [None, *other]])
+        cands = alternative_baseline(cands, other, min(gap_ref, free), floor.sigma, fitter.n_eff)
+    if free < gap_ref:
+        # the best model without an effect is one an effect's joint fit found: every effect is
+        # measured against it
+        echo(f"an effect's joint fit, its effect left out, predicts the validation part better than the "
+             f"refit model ({free:.4g} against {gap_ref:.4g}): every effect measured against it")
+        gap_ref = free
+        test = gap.gap_test(gap_ref, n_val, floor, min_ratio=ID_MIN_RATIO)
+        cands = alternative_baseline(cands, [], gap_ref, floor.sigma, fitter.n_eff)
     return cands, gap_ref, test
 
 
