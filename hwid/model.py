@@ -22,7 +22,7 @@ import numpy as np
 
 from hwid.blocks import backlash as bl
 from hwid.blocks.chain import run_chain
-from hwid.blocks.linear import LinearBlock, unit_rest, discretise
+from hwid.blocks.linear import LinearBlock, discretise, unit_rest
 from hwid.blocks.static import PiecewiseH, PolynomialH
 
 #: A gear state below every border: from it, a staircase's first lead-in level puts a Backlash on

@@ -242,9 +242,9 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
     """Every catalogue effect (or the ``effects`` subset) fitted and scored; for an identified G with
     a lightly damped mode outside the band, also from the baseline without it, each effect measured
     against the better baseline alone. For an identified model, each effect is measured against the
-    best model without an effect found: the refit baseline, or an effect's own joint fit with its
-    effect left out (:meth:`hwid.diagnose.rank.EffectFitter.effect_free_gap`). Returns
-    ``(candidates, gap_ref, test)``."""
+    best model without an effect found: the refit baseline, that baseline through an input effect's
+    path, or an effect's own joint fit with its effect left out
+    (:meth:`hwid.diagnose.rank.EffectFitter.effect_free_gap`). Returns ``(candidates, gap_ref, test)``."""
     available = catalogue(val.scale)
     if effects is not None:
         unknown = [e for e in effects if e not in available]
