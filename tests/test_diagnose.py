@@ -511,3 +511,21 @@ def test_an_input_effect_at_its_null_is_credited_with_nothing():
     assert null.gap_after < 0.9 * fitter.gap_ref              # the path's advantage, not the effect's
     assert abs(fitter.effect_free_gap(null) - null.gap_after) < 1e-9
     assert abs(fitter.effect_free_gap(None) - null.gap_after) < 1e-9
+
+
+def test_equal_numbers_of_poles_and_zeros_below_half_the_band_act_as_a_gain_and_go():
+    """Stage 2's G of a blind rig (a saturation inside the paper's G): poles at 0.0073 and 0.0028 rad/s
+    and zeros at 0.0048 +- 0.0024j, all below half the 0.02 rad/s band. On the band they are a gain
+    step of 0.72 and are taken out (the two in-band poles stay); the same poles with zeros ten times
+    slower (a step of 50) are the plant's and stay."""
+    from hwid.diagnose.baseline import cancel_slow_pairs
+    band_poles = np.poly([-0.5589, -0.2067])
+    slow_p, slow_z = [-0.0073, -0.0028], [-0.0048 + 0.0024j, -0.0048 - 0.0024j]
+    den = np.polymul(band_poles, np.poly(slow_p))
+    num = np.real(np.poly(slow_z))
+    n, d, pairs = cancel_slow_pairs(num, den, (0.02, 0.2))
+    assert len(pairs) == 2 and np.allclose(sorted(np.roots(d).real), [-0.5589, -0.2067])
+    assert n.size == 1 and d[-1] == 1.0
+    num_far = np.real(np.poly([z / 10 for z in slow_z]))
+    n, d, pairs = cancel_slow_pairs(num_far, den, (0.02, 0.2))
+    assert pairs == [] and len(d) == 5

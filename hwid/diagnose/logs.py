@@ -270,26 +270,29 @@ def identify_from_logs(cfg, pieces, out: Path, echo) -> tuple:
          + (f" with a delay of {res.delay:.4g} s" if res.delay > 0 else "") + f", sigma {res.sigma:.4g}"
          + (f"; the input slews at {rate:.4g} units/s (left to rate_limit)" if rate else ""))
     u = np.concatenate([p.u for p in pieces])
-    model, notes = without_slow_pairs(res.model(), max(p.u.size * p.dt for p in pieces), echo)
+    model, notes = without_slow_pairs(res.model(), 2 * np.pi / max(p.u.size * p.dt for p in pieces), echo,
+                                      "the records (2 pi / their longest)")
     return model, {"source": "identified", "fit": "whole", "records": list(pieces), "starts": dict(res.initial_states),
                    "u_range": [float(u.min()), float(u.max())], "notes": list(res.warnings) + notes,
                    "input_rate_taken_out": rate or 0.0}
 
 
-def without_slow_pairs(model, longest_s: float, echo) -> tuple:
-    """The model with the pole-zero pairs of G that nearly cancel below ``2 pi / longest_s`` taken
-    out (:func:`hwid.diagnose.baseline.cancel_slow_pairs`): no record is long enough to place them,
-    and an output-error fit puts one there to absorb what an effect does to the levels; left in, its
-    creep would make every record's start unusable. The diagnosis's refit of h carries the gain."""
+def without_slow_pairs(model, lo: float, echo, what: str = "the records") -> tuple:
+    """The model with the pole-zero pairs of G that nearly cancel below ``lo`` rad/s taken out
+    (:func:`hwid.diagnose.baseline.cancel_slow_pairs`), ``(model, notes)``. From logs, ``lo`` is
+    ``2 pi`` over the longest record: no record is long enough to place them, and an output-error
+    fit puts one there to absorb what an effect does to the levels; left in, its creep would make
+    every record's start unusable. For a live rig, the lowest sine that identified G: below it the
+    pairs are artefacts of harmonics an effect distorted, and left in they would set the validation
+    experiments' length. The diagnosis's refit of h carries the gain."""
     from hwid.blocks.linear import LinearBlock
     from hwid.diagnose.baseline import cancel_slow_pairs
     from hwid.model import HWModel
     G = model.linear
-    num, den, pairs = cancel_slow_pairs(G.num, G.den, (2 * np.pi / longest_s, np.inf))
+    num, den, pairs = cancel_slow_pairs(G.num, G.den, (lo, np.inf))
     if not pairs:
         return model, []
-    note = ("G had pole-zero pairs below what the records can place (2 pi / their longest, "
-            f"{2 * np.pi / longest_s:.3g} rad/s), taken out: " +
+    note = (f"G had pole-zero pairs below what {what} can place ({lo:.3g} rad/s), taken out: " +
             ", ".join(f"pole {p:.3g} / zero {z:.3g} rad/s" for p, z in pairs))
     echo(note)
     return HWModel(model.input, LinearBlock(tuple(np.asarray(num, float).tolist()),

@@ -98,6 +98,11 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
     calls_identified = plant.calls
     seconds_model = time.perf_counter() - t_start
     identified = origin.get("source") == "identified"
+    band = _sine_band(cfg)
+    if identified and band is not None:
+        from hwid.diagnose.logs import without_slow_pairs
+        sim_model, notes = without_slow_pairs(sim_model, band[0], echo, "the identification's sines")
+        origin["notes"] = list(origin.get("notes", [])) + notes
 
     val = run_validation(cfg, plant, sim_model, origin, identified, echo)
     calls_all = plant.calls
