@@ -6,7 +6,7 @@ deadzone) the fit minimises the squared gap on the fit experiments: a coarse gri
 points (:meth:`Effect.starts`), then bounded least squares (``scipy.optimize.least_squares``) from
 the best two, on a unit box (log scale where the parameter spans decades); for an effect of one or
 two parameters, a profile scan along each of them then looks for a valley least squares did not
-start in (:meth:`EffectFitter._scan`). The candidate is then simulated on the validation
+start in (:func:`hwid.diagnose.search.profile_scan`). The candidate is then simulated on the validation
 experiments:
 
 * ``gap_after`` — RMS gap left, output units;
@@ -23,6 +23,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from hwid.diagnose import effects as effect_models
+from hwid.diagnose import search
 from hwid.diagnose.baseline import cancel_slow_pairs, mirror_rhp_zeros, split_modes
 from hwid.diagnose.gap import rms
 from hwid.diagnose.modelsim import ModelSim, ReblockedSim
@@ -396,24 +397,8 @@ class EffectFitter:
         return new
 
     # --------------------------------------------------------------------------- parameter maps
-    @staticmethod
-    def _to_unit(theta, lo, hi, logs):
-        t = np.asarray(theta, float)
-        out = np.empty_like(t)
-        for i, lg in enumerate(logs):
-            if lg:
-                out[i] = (np.log(t[i]) - np.log(lo[i])) / (np.log(hi[i]) - np.log(lo[i]))
-            else:
-                out[i] = (t[i] - lo[i]) / (hi[i] - lo[i]) if hi[i] > lo[i] else 0.0
-        return np.clip(out, 0.0, 1.0)
-
-    @staticmethod
-    def _from_unit(x, lo, hi, logs):
-        out = np.empty(len(logs))
-        for i, lg in enumerate(logs):
-            xi = float(np.clip(x[i], 0.0, 1.0))
-            out[i] = np.exp(np.log(lo[i]) + xi * (np.log(hi[i]) - np.log(lo[i]))) if lg else lo[i] + xi * (hi[i] - lo[i])
-        return out
+    _to_unit = staticmethod(search.to_unit)
+    _from_unit = staticmethod(search.from_unit)
 
     def _residual(self, eff, theta, which="fit"):
         sim, ys, ms = (self.sf, self.yf, self.mf) if which == "fit" else (self.sv, self.yv, self.mv)
@@ -539,45 +524,11 @@ class EffectFitter:
         return self._score(eff, best, len(eff.params))
 
     def _scan(self, eff, best, best_cost, lo, hi, logs):
-        """The effect's own parameters scanned one at a time (the others and the model's held at the
-        best so far): ``SCAN_POINTS`` values over the whole range, then as many across the cells
-        either side of the best of them; round again while that moves the best.
-
-        Least squares follows the slope it starts on; the cost of a clip, a deadzone or a slew seen
-        through a steep output stage (the paper's h) is a narrow valley between ridges, and the
-        coarse starting grid can miss it: an input clip 0.05 off its level on a paper-base rig left
-        10x the noise floor where the true level leaves the floor itself. Each limit of a clip, the
-        width of a deadzone or a rate acts mostly on its own, so a profile along each parameter
-        finds the valley that least squares then descends."""
-        best = np.asarray(best, float).copy()
-
-        def along(k, grid):
-            nonlocal best, best_cost
-            moved = False
-            for v in grid:
-                th = best.copy()
-                th[k] = v
-                r = self._residual(eff, th)
-                c = float(r @ r)
-                if c < best_cost:
-                    best_cost, best, moved = c, th, True
-            return moved
-
-        n = self.SCAN_POINTS
-        for _ in range(2):
-            moved = False
-            for k in range(len(eff.params)):
-                log = bool(logs[k]) and lo[k] > 0
-                a, b = (np.log(lo[k]), np.log(hi[k])) if log else (lo[k], hi[k])
-                coarse = np.linspace(a, b, n)
-                moved |= along(k, np.exp(coarse) if log else coarse)
-                c = np.log(best[k]) if log else best[k]
-                step = (b - a) / (n - 1)
-                fine = np.linspace(max(c - step, a), min(c + step, b), n + 2)[1:-1]
-                moved |= along(k, np.exp(fine) if log else fine)
-            if not moved:
-                break
-        return best, best_cost
+        """The effect's own parameters profiled one at a time (:func:`hwid.diagnose.search.profile_scan`)."""
+        def cost(th):
+            r = self._residual(eff, th)
+            return float(r @ r)
+        return search.profile_scan(cost, best, best_cost, lo, hi, logs, len(eff.params), self.SCAN_POINTS)
 
     def _lsq_fit(self, fun, x0, step: float):
         """Bounded least squares on the unit box (None when it cannot start); ``max_nfev`` counts
