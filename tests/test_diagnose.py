@@ -243,6 +243,35 @@ def test_refloor_ties_candidates_whose_scores_are_close():
     assert out[1].explained_fraction == 1.0 and 0.85 < out[0].explained_fraction < 0.95
 
 
+def test_an_effect_that_leaves_only_noise_is_named_whatever_share_it_explains():
+    """A clipping sensor on an identified model near the floor (seed 4127's lab log: 0.01855 from the
+    settled holds, kappa 2.85 over 2058 samples, 4432 validation samples): the refit leaves 0.02326
+    (mean-square ratio 1.57, z 9.0), the clip 0.0199. That is 0.49 of the excess above the floor,
+    but the gap test no longer tells 0.0199 from noise (ratio 1.15, z 2.4 < 5): the clip is the
+    verdict. A rival that leaves 0.0225 (ratio 1.47, z 7.4) still leaves a gap; one that leaves
+    noise but does not pay for its parameters is not named; nor is a drift where none is plausible."""
+    from hwid.diagnose.gap import NoiseFloor, gap_test
+    from hwid.diagnose.verdict import Candidate, eligible, explained_fraction, verdict
+    nf = NoiseFloor(sigma=0.01855, kappa=2.85, n=2058, slow_rms=0.0, slow_z=0.0, surrogate=np.zeros(1))
+
+    def leaves_noise(g):
+        return not gap_test(g, 4432, nf, min_ratio=1.25).significant
+    before = 0.02326
+    assert not leaves_noise(before)
+
+    def cand(name, ga, score):
+        return Candidate(name, "output", {}, ga, ga, explained_fraction(before, ga, nf.sigma), score, 2.0)
+    clip, rival = cand("sensor_saturation", 0.0199, 470.0), cand("sensor_lag", 0.0225, 90.0)
+    assert clip.explained_fraction == pytest.approx(0.49, abs=0.01) and leaves_noise(0.0199)
+    assert not leaves_noise(0.0225)
+    assert verdict([clip, rival], True, False) == "unexplained"                 # half the excess alone
+    assert verdict([clip, rival], True, False, leaves_noise=leaves_noise) is clip
+    assert verdict([rival, clip], True, False, leaves_noise=leaves_noise) == "unexplained"
+    assert not eligible(cand("resonance", 0.0199, -3.0), False, leaves_noise=leaves_noise)
+    assert not eligible(cand("drift", 0.0190, 500.0), False, leaves_noise=leaves_noise)
+    assert verdict([clip], False, False, leaves_noise=leaves_noise) == "none"   # no gap, no effect
+
+
 def test_drift_is_additive_against_a_wandering_gain():
     """Repeat differences of a slow additive drift (time constant 80 or 400 s, s.d. 0.05) are
     additive, their fast part is (almost) noise and hardly follows the output; those of a gain that

@@ -161,7 +161,8 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
         if from_logs and id_err["records"]:
             id_err["validation_over_own"] = float(gap_before / max(id_err["gap"], floor.sigma))
             id_err["generalises"] = bool(id_err["validation_over_own"] <= GENERALISE_RATIO)
-    test = gap.gap_test(gap_ref, n_val, floor, min_ratio=ID_MIN_RATIO if identified else 1.1)
+    min_ratio = ID_MIN_RATIO if identified else 1.1
+    test = gap.gap_test(gap_ref, n_val, floor, min_ratio=min_ratio)
     _echo_baseline(fitter, gap_before, gap_ref, floor, test, echo)
     cands, gap_ref, test = fit_effects(fitter, sim_model, val, floor, gap_ref, test, n_val, identified, effects, echo)
     drift_ok = bool(floor.slow_z > 10 and additive["additive"])
@@ -176,17 +177,23 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
         cands, by_effect = second_test(cands, gap_ref, floor, drift_ok, fitter.n_eff)
         if by_effect is not None and by_effect["significant"]:
             test = dataclasses.replace(test, significant=True)
-    verdict = decide_verdict(cands, test.significant, drift_ok)
+
+    def leaves_noise(gap_after: float) -> bool:    # what an effect leaves, through the test that found the gap
+        return not gap.gap_test(gap_after, n_val, floor, min_ratio=min_ratio).significant
+
+    verdict = decide_verdict(cands, test.significant, drift_ok, leaves_noise=leaves_noise)
     if id_err is not None and not id_err.get("generalises", True) and verdict != "none":
         echo(f"the identified model misses the validation part {id_err['validation_over_own']:.3g}x as far as its "
              f"own records: it does not generalise, and no effect is credited with repairing it")
         verdict = "unexplained"
-    groups = indistinguishable(cands, val.y_val, val.m_val, floor.sigma, floor.kappa, drift_ok) \
-        if test.significant else []
+    groups = indistinguishable(cands, val.y_val, val.m_val, floor.sigma, floor.kappa, drift_ok,
+                               leaves_noise=leaves_noise) if test.significant else []
     cost = {**cost, "seconds_analysis": time.perf_counter() - t0}
     result = _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, test, additive, drift_ok,
                      fitter, id_err, by_effect, sim_model, origin, cost, groups)
     summary = result.to_dict()
+    if isinstance(verdict, Candidate):     # the same test on what the verdict's effect leaves
+        summary["test"]["after_verdict"] = gap.gap_test(verdict.gap_after, n_val, floor, min_ratio=min_ratio).to_dict()
     if extra is not None:
         extra(fitter, cands, verdict, groups, summary)
     summary["cost"]["seconds_total"] = time.perf_counter() - t_start
