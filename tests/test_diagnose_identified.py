@@ -113,3 +113,19 @@ def test_identified_fast_rate_limit_before_a_backlash_inverse(tmp_path_factory):
     assert s["verdict"]["effect"] == "rate_limit" == top["effect"]
     assert abs(top["params"]["rate"] / R.TRUTH["rate_limit_inverse"]["rate"] - 1) < 0.05
     assert s["gap_after"] < 1.5 * s["noise_floor"]
+
+
+def test_a_g_stage_2_could_not_read_is_not_used():
+    """Stage 2 found no harmonic above the noise at 2 of its 4 sines (a rig slewing at 0.059 units/s
+    did not follow them) and fitted ``1.45e-15/(s + 1.45e-15)``: both are reasons to fit the whole
+    model instead; a G read at every sine is used."""
+    from types import SimpleNamespace
+
+    from hwid.diagnose.sim_side import g_undetermined
+    lost = "omega = 0.3 rad/s: no harmonic is significantly above the noise; G is not determined (raise U)"
+    w = [0.3, 0.6, 1.2, 2.4]
+    assert "2 of its 4" in g_undetermined(SimpleNamespace(frequencies=w, warnings=(lost, lost),
+                                                          parametric={"den": [1.0, 1.0]}))
+    assert "pole at 1.45e-15" in g_undetermined(SimpleNamespace(frequencies=w, warnings=(lost,),
+                                                                parametric={"den": [1.0, 1.45e-15]}))
+    assert g_undetermined(SimpleNamespace(frequencies=w, warnings=(lost,), parametric={"den": [0.5, 1.0]})) == ""

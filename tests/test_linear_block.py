@@ -49,3 +49,13 @@ def test_biproper_with_zero_and_normalisation():
 def test_freqresp_delay_phase():
     g = LinearBlock((1.0,), (1.0, 1.0), 0.5)
     np.testing.assert_allclose(np.angle(g.freqresp(1.0)), -np.pi / 4 - 0.5)
+
+
+def test_a_pole_next_to_zero_still_has_its_rest_state():
+    """``1.5e-15/(s + 1.5e-15)`` (a G identified from sines the plant did not follow) rounds the
+    sampled recursion's ``Phi`` to 1: its rest state comes from the continuous ``A`` (unit gain, so
+    a held input of 2 gives 2); an integrator has no rest state and starts at zero."""
+    from hwid.blocks.linear import LinearBlock
+    near = LinearBlock((1.5e-15,), (1.0, 1.5e-15))
+    assert near.simulate(np.full(5, 2.0), 0.05) == pytest.approx(np.full(5, 2.0))
+    assert LinearBlock((1.0,), (1.0, 0.0)).simulate(np.ones(4), 0.05) == pytest.approx(0.05 * np.arange(4))

@@ -249,3 +249,23 @@ def test_a_right_half_plane_zero_is_kept_only_where_it_fits_better_than_a_pole(n
         miss = np.polyval(res.num, w) / np.polyval(res.den, w) - np.polyval(num, w) / np.polyval(den, w)
         assert np.max(np.abs(miss)) < 0.005
     assert 0.95 < res.sigma / 0.01 < 1.05
+
+
+def test_a_slow_actuator_is_fitted_with_its_rate_from_the_start():
+    """Records through an actuator slewing at 0.06 units/s (40 s to cross the range, G settling in
+    2 s): the fit with the rate from the start (:func:`fit_rate_first`, the live diagnosis's answer
+    to sines the plant did not follow) finds the rate within 3 % and leaves the noise."""
+    from hwid.blocks.slew import slewed
+    from hwid.identify.whole_rate import fit_rate_first
+    _, truth = _plant()
+    rng = np.random.default_rng(5)
+    dt, rate, out = 0.05, 0.06, []
+    for i in range(2):
+        u = _levels_with_ramps(rng, 6, 20.0, 1.0, dt)
+        x = truth.simulate(slewed(u, rate, dt), dt).x
+        out.append(Record(f"levels_{i}", dt, u, x + 0.01 * rng.standard_normal(u.size)))
+    fit = WholeModelFit(max_degree=3, structures=[Structure(1, 0)], types=("backlash",))
+    found = fit_rate_first(fit, out)
+    assert found == pytest.approx(rate, rel=0.03)
+    assert fit.result_.sigma < 1.1 * 0.01
+    assert any("slews at" in w for w in fit.result_.warnings)

@@ -145,11 +145,22 @@ def _delayed(v: np.ndarray, lag: int, start: float) -> np.ndarray:
 
 @lru_cache(maxsize=256)
 def unit_rest(num: tuple, den: tuple, delay: float, dt: float) -> np.ndarray:
-    """The recursion's state at rest under a unit input, ``(I - Phi)^-1 (Gamma1 + Gamma0)``, cached
-    with :func:`discretise` (a fit simulates one G on every record: solving it each time cost as
-    much as the simulation)."""
-    n, _, _, Phi, G1, G0, _, _ = discretise(num, den, delay, dt)
-    return np.linalg.solve(np.eye(n) - Phi, G1 + G0)
+    """The recursion's state at rest under a unit input, cached with :func:`discretise` (a fit
+    simulates one G on every record: solving it each time cost as much as the simulation).
+
+    The fixed point of ``x = Phi x + (Gamma1 + Gamma0)`` is the continuous state at rest,
+    ``-A^-1 B``, solved from ``A`` rather than ``I - Phi``: a pole within 1e-16/dt of zero (a G
+    identified from sines the plant did not follow, ``1.5e-15/(s + 1.5e-15)``) rounds ``Phi`` to 1
+    and ``I - Phi`` to singular, while ``A`` keeps it. A pole exactly at zero (an integrator) has no
+    rest state: its state starts at zero (least squares)."""
+    A, B, _, _ = _tf2ss(num, den)
+    if A.shape[0] == 0:
+        return np.zeros(0)
+    try:
+        x = np.linalg.solve(A, -B)
+    except np.linalg.LinAlgError:
+        x = np.linalg.lstsq(A, -B, rcond=None)[0]
+    return np.ascontiguousarray(x)
 
 
 @lru_cache(maxsize=256)

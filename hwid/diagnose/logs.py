@@ -236,14 +236,19 @@ def fit_pieces(parts) -> list:
     return out
 
 
-def identify_from_logs(cfg, pieces, out: Path, echo) -> tuple:
-    """The whole-model fit on the fit parts (``whole.h5``); the model and its origin."""
+def identify_from_logs(cfg, pieces, out: Path, echo, rate_first: bool = False) -> tuple:
+    """The whole-model fit on the fit parts (``whole.h5``); the model and its origin. ``rate_first``:
+    records the input did not follow, fitted with its slew rate from the start
+    (:func:`hwid.identify.whole_rate.fit_rate_first`)."""
     from hwid.identify.history import identify_recorded
     from hwid.identify.whole import WholeModelFit
-    from hwid.identify.whole_rate import fit_rate_added
+    from hwid.identify.whole_rate import fit_rate_added, fit_rate_first
     from hwid.model import InputNonlinearity
-    from hwid.results import write_whole
     t0 = time.perf_counter()
+    if rate_first:
+        fitter = WholeModelFit.from_config(cfg, staged=True)
+        rate = fit_rate_first(fitter, pieces)
+        return _whole_model(cfg, fitter, rate, pieces, out, echo, t0)
     try:    # stage 1 from the fit part's levels starts the borders, where they hold enough
         hist = identify_recorded(cfg, pieces)
         borders = InputNonlinearity(hist.type, 1.0, hist.slope_down, hist.d_plus, hist.d_minus)
@@ -262,6 +267,13 @@ def identify_from_logs(cfg, pieces, out: Path, echo) -> tuple:
     # a slow actuator the fit without it would mimic with a G many times slower than the plant's:
     # its rate is fitted too, taken out of the model and left to rate_limit as a start
     rate = fit_rate_added(fitter)
+    return _whole_model(cfg, fitter, rate, pieces, out, echo, t0)
+
+
+def _whole_model(cfg, fitter, rate, pieces, out: Path, echo, t0: float) -> tuple:
+    """The whole fit's result written (``whole.h5``) and said; the model without G's slow pairs, and
+    its origin."""
+    from hwid.results import write_whole
     res = fitter.result_
     write_whole(out / "whole.h5", cfg, res)
     echo(f"identified the model from the fit records ({time.perf_counter() - t0:.1f} s): {res.type}, "

@@ -75,13 +75,41 @@ def identified_model(cfg, plant, out_dir=None, echo=print) -> tuple[HWModel, dic
          f"d- = {nonlinear.d_minus:.4g}, S^d = {nonlinear.slope_down:.4g}, h degree {nonlinear.degree}, "
          f"G = {list(np.round(linear.parametric.get('num', []), 4))}/{list(np.round(linear.parametric.get('den', []), 4))}")
     levels = list(cfg.protocols.staircase.levels_up) + list(cfg.protocols.staircase.levels_down)
+    records = [r for r in list(nonlinear_records) + list(linear_records) if r.y is not None]
+    w_range = [float(x) for x in nonlinear.w_range]
+    why = g_undetermined(linear)
+    if why and out_dir is not None:
+        from hwid.diagnose.logs import identify_from_logs
+        echo(f"{why}: the model is fitted whole to the staircases and sines, with the input's slew rate")
+        model, origin = identify_from_logs(cfg, records, Path(out_dir), echo, rate_first=True)
+        w = np.concatenate([model.input.apply(r.u) for r in records])   # the w the records reached
+        return model, {**origin, "w_range": [float(w.min()), float(w.max())],
+                       "notes": [why] + list(origin.get("notes", []))}
     notes: list = []
     model = model_from_stages(nonlinear, linear, notes)
     for note in notes:
         echo(note)
-    records = [r for r in list(nonlinear_records) + list(linear_records) if r.y is not None]
-    return model, {"source": "identified", "w_range": [float(x) for x in nonlinear.w_range], "notes": notes,
+    return model, {"source": "identified", "w_range": w_range, "notes": notes,
                    "u_range": [float(min(levels)), float(max(levels))], "records": records}
+
+
+def g_undetermined(linear) -> str:
+    """Why stage 2's G cannot stand for the plant's, or ``""``: at half its sines or more no harmonic
+    of the output rose above the noise (the plant did not follow them: a slow actuator, a stuck
+    gear), or its parametric G has a pole within 1e-6 of the lowest sine's frequency of zero (the
+    fit's answer to gains that fall to nothing across the band, ``1.5e-15/(s + 1.5e-15)``). Either
+    way two stages read from harmonics have nothing to read; the staircases and sines still hold
+    the plant's response, for a fit of the whole model."""
+    n = len(linear.frequencies)
+    lost = sum("G is not determined" in w for w in linear.warnings)
+    if n and 2 * lost >= n:
+        return f"stage 2 could not determine G at {lost} of its {n} sines (no harmonic above the noise)"
+    den = np.atleast_1d(np.asarray((linear.parametric or {}).get("den", []), float))
+    if den.size > 1 and n:
+        poles = np.roots(np.trim_zeros(den, "f"))
+        if poles.size and np.min(np.abs(poles)) < 1e-6 * float(np.min(linear.frequencies)):
+            return f"stage 2's G has a pole at {np.min(np.abs(poles)):.3g} rad/s, nothing below its sines"
+    return ""
 
 
 def load_model(spec, cfg=None, plant=None, out_dir=None, echo=print) -> tuple[HWModel, dict]:

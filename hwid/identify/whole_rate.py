@@ -37,34 +37,62 @@ def fit_rate_added(fitter: WholeModelFit) -> float | None:
     ``result_``, whose table gains the rows marked ``+rate``) and the rate is returned; else None
     and ``fitter`` keeps its fit (its table gains the rows)."""
     base = fitter.problem_
-    records = base.records
-    _, dt, width = _extent(records)
-    rates = np.log(np.geomspace(width / 120.0, width / (10 * dt), RATE_POINTS))
-    probs, starts = [], []
-    for kind in fitter.types:
-        for s in (fitter.structures or STRUCTURES):
-            if s.order > base.structure.order:
-                continue
-            prob = _Problem(records, kind, s, base.degree, base.with_delay, True)
-            grid = WholeModelFit(fitter.max_degree, [s], base.with_delay, (kind,))._start(records, kind, s, None)
-            k = prob.rate_at
-            trials = [np.concatenate([grid[:k], [r], grid[k:]]) for r in rates]
-            costs = [float(np.sum(prob.residual(t) ** 2)) for t in trials]
-            probs.append(prob)
-            starts.append(_best_states(prob, trials[int(np.argmin(costs))]))
-    fits = _descend(probs, starts, fitter.max_nfev)
-    rows = [_row(p, rss, str(p.structure) + ("+delay" if base.with_delay else "") + "+rate")
-            for p, (_, rss) in zip(probs, fits)]
+    probs, fits, rows = _rate_fits(fitter, base.records, base.degree, base.with_delay, base.structure.order)
     i = int(np.argmin([r["aic"] for r in rows]))
     prob, x = probs[i], fits[i][0]
     table = list(fitter.result_.selection) + rows
     if rows[i]["aic"] >= min(r["aic"] for r in fitter.result_.selection):
         fitter.result_ = replace(fitter.result_, selection=tuple(table))
         return None
+    _keep(fitter, prob, x, table)
+    return prob.rate(x)
+
+
+def fit_rate_first(fitter: WholeModelFit, records) -> float:
+    """The whole model with the input's slew rate from the start, where the records say the input
+    did not follow (stage 2 found no harmonic above the noise at half its sines or more: the sines
+    were too fast for the actuator, :func:`hwid.diagnose.sim_side.g_undetermined`). Every type and
+    structure of ``fitter`` at h_bar's highest degree, from the border grid at the best of
+    ``RATE_POINTS`` rates, as in :func:`fit_rate_added` but without the search over fits without a
+    rate first (most of the whole fit's time: on a third-order rig slewing at 0.059 units/s that
+    search took 108 s and ended at 60x the noise; this fit took 11 s and found 0.0596). ``fitter``
+    holds the best fit (``problem_``, ``theta_``, ``result_``); returns its rate."""
+    records = [r for r in records if r.y is not None and r.u.size > 10]
+    order = max(s.order for s in (fitter.structures or STRUCTURES))
+    probs, fits, rows = _rate_fits(fitter, records, fitter.max_degree, fitter.delay, order)
+    i = int(np.argmin([r["aic"] for r in rows]))
+    _keep(fitter, probs[i], fits[i][0], rows)
+    return probs[i].rate(fits[i][0])
+
+
+def _rate_fits(fitter: WholeModelFit, records, degree: int, with_delay: bool, max_order: int):
+    """Each type and structure (of order up to ``max_order``) with the rate fitted, from the border
+    grid at the best of ``RATE_POINTS`` rates, all descended: ``(problems, fits, table rows)``."""
+    _, dt, width = _extent(records)
+    rates = np.log(np.geomspace(width / 120.0, width / (10 * dt), RATE_POINTS))
+    probs, starts = [], []
+    for kind in fitter.types:
+        for s in (fitter.structures or STRUCTURES):
+            if s.order > max_order:
+                continue
+            prob = _Problem(records, kind, s, degree, with_delay, True)
+            grid = WholeModelFit(fitter.max_degree, [s], with_delay, (kind,))._start(records, kind, s, None)
+            k = prob.rate_at
+            trials = [np.concatenate([grid[:k], [r], grid[k:]]) for r in rates]
+            costs = [float(np.sum(prob.residual(t) ** 2)) for t in trials]
+            probs.append(prob)
+            starts.append(_best_states(prob, trials[int(np.argmin(costs))]))
+    fits = _descend(probs, starts, fitter.max_nfev)
+    rows = [_row(p, rss, str(p.structure) + ("+delay" if with_delay else "") + "+rate")
+            for p, (_, rss) in zip(probs, fits)]
+    return probs, fits, rows
+
+
+def _keep(fitter: WholeModelFit, prob, x, table) -> None:
+    """``fitter`` holds the fit with a rate; its result says the model leaves the rate out."""
     fitter.problem_, fitter.theta_ = prob, x
     res = fitter._result(prob, x, table)
     # the result's model has no slew: say so where the result is read (whole.h5, the JSON's notes)
     fitter.result_ = replace(res, warnings=res.warnings + (
         f"the input slews at {prob.rate(x):.4g} units/s in this fit; F, G and h are fitted with it, "
         "and the model here leaves it out",))
-    return prob.rate(x)
