@@ -402,8 +402,9 @@ class Resonance(Effect):
     def simulate(self, sim, theta, i):
         G = sim.model.linear
         wn, z = float(theta[0]), float(theta[1])
-        den = np.polymul(G.den, [1.0, 2 * z * wn, wn * wn])
-        num = np.polymul(G.num, [wn * wn])
+        # np.polymul's product without its poly1d objects (6 % of a profiled serial diagnosis)
+        den = np.convolve(G.den, [1.0, 2 * z * wn, wn * wn])
+        num = np.convolve(G.num, [wn * wn])
         return sim.from_v(sim.v[i], LinearBlock(tuple(num), tuple(den), G.delay), i)
 
 
@@ -440,7 +441,7 @@ class SensorLag(Effect):
         tau, a = float(theta[0]), float(theta[1])
         if a > 0:
             G = sim.model.linear
-            num = np.polymul(G.num, [a * tau, 1.0])
+            num = np.convolve(G.num, [a * tau, 1.0])
             # a biproper G cannot give up a lag: keep it as it is
             x = sim.from_v(sim.v[i], LinearBlock(tuple(num), G.den, G.delay)) if num.size <= len(G.den) else sim.x[i]
         else:
