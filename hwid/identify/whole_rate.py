@@ -55,7 +55,7 @@ def fit_rate_first(fitter: WholeModelFit, records) -> float:
     structure of ``fitter`` at h_bar's highest degree, from the border grid at the best of
     ``RATE_POINTS`` rates, as in :func:`fit_rate_added` but without the search over fits without a
     rate first (most of the whole fit's time: on a third-order rig slewing at 0.059 units/s that
-    search took 108 s and ended at 60x the noise; this fit took 11 s and found 0.0596). ``fitter``
+    search took 108 s and ended at 3.9x the noise; this fit took 11 s and found 0.0596). ``fitter``
     holds the best fit (``problem_``, ``theta_``, ``result_``); returns its rate."""
     records = [r for r in records if r.y is not None and r.u.size > 10]
     order = max(s.order for s in (fitter.structures or STRUCTURES))
