@@ -122,10 +122,12 @@ def test_a_g_stage_2_could_not_read_is_not_used():
     from types import SimpleNamespace
 
     from hwid.diagnose.sim_side import g_undetermined
-    lost = "omega = 0.3 rad/s: no harmonic is significantly above the noise; G is not determined (raise U)"
     w = [0.3, 0.6, 1.2, 2.4]
-    assert "2 of its 4" in g_undetermined(SimpleNamespace(frequencies=w, warnings=(lost, lost),
-                                                          parametric={"den": [1.0, 1.0]}))
-    assert "pole at 1.45e-15" in g_undetermined(SimpleNamespace(frequencies=w, warnings=(lost,),
-                                                                parametric={"den": [1.0, 1.45e-15]}))
-    assert g_undetermined(SimpleNamespace(frequencies=w, warnings=(lost,), parametric={"den": [0.5, 1.0]})) == ""
+
+    def lin(n_lost, den):
+        harm = tuple({"significant_harmonics": np.zeros(0) if k < n_lost else np.array([1.0, 3.0])}
+                     for k in range(len(w)))
+        return SimpleNamespace(frequencies=w, harmonics=harm, parametric={"den": den})
+    assert "2 of its 4" in g_undetermined(lin(2, [1.0, 1.0]))
+    assert "pole at 1.45e-15" in g_undetermined(lin(1, [1.0, 1.45e-15]))
+    assert g_undetermined(lin(1, [0.5, 1.0])) == ""

@@ -101,7 +101,7 @@ def g_undetermined(linear) -> str:
     way two stages read from harmonics have nothing to read; the staircases and sines still hold
     the plant's response, for a fit of the whole model."""
     n = len(linear.frequencies)
-    lost = sum("G is not determined" in w for w in linear.warnings)
+    lost = sum(np.size(h.get("significant_harmonics", [1])) == 0 for h in linear.harmonics)
     if n and 2 * lost >= n:
         return f"stage 2 could not determine G at {lost} of its {n} sines (no harmonic above the noise)"
     den = np.atleast_1d(np.asarray((linear.parametric or {}).get("den", []), float))
