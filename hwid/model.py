@@ -181,7 +181,7 @@ class HWModel:
             v0 = start
             args = (True, 1.0 / p[0], p[2], 1.0 / p[1], p[3], start)
         level = v0 if rest is None else float(rest)
-        x0 = unit_rest(tuple(map(float, g.num)), tuple(map(float, g.den)), 0.0, float(dt)) * level
+        x0 = unit_rest(tuple(map(float, g.num)), tuple(map(float, g.den))) * level
         coef = np.ascontiguousarray(self.output.coefficients, dtype=float)
         # one allocation for the signals: at 10^6 samples malloc hands the block of the last
         # experiment back whole, where four 8 MB arrays go back to the system and fault in anew

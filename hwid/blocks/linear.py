@@ -92,7 +92,7 @@ class LinearBlock:
         if n == 0:  # static gain: w_k = D v(t_k - tau), the delay line holding ``start``
             vd = _delayed(v, lag + (frac != 0.0), start)
             return D * vd
-        x0 = unit_rest(*key) * start
+        x0 = unit_rest(key[0], key[1]) * start
         if rest is not None:
             vd = _delayed(v, lag, start) if lag else v
             w = _ss_run(vd, Phi, G1, G0, C, D if frac == 0.0 else 0.0, x0, start)
@@ -144,9 +144,10 @@ def _delayed(v: np.ndarray, lag: int, start: float) -> np.ndarray:
 
 
 @lru_cache(maxsize=256)
-def unit_rest(num: tuple, den: tuple, delay: float, dt: float) -> np.ndarray:
-    """The recursion's state at rest under a unit input, cached with :func:`discretise` (a fit
-    simulates one G on every record: solving it each time cost as much as the simulation).
+def unit_rest(num: tuple, den: tuple) -> np.ndarray:
+    """The recursion's state at rest under a unit input, cached (a fit simulates one G on every
+    record: solving it each time cost as much as the simulation). It depends on G alone, not on
+    the step or the delay.
 
     The fixed point of ``x = Phi x + (Gamma1 + Gamma0)`` is the continuous state at rest,
     ``-A^-1 B``, solved from ``A`` rather than ``I - Phi``: a pole within 1e-16/dt of zero (a G

@@ -178,8 +178,11 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
         if by_effect is not None and by_effect["significant"]:
             test = dataclasses.replace(test, significant=True)
 
-    def leaves_noise(gap_after: float) -> bool:    # what an effect leaves, through the test that found the gap
-        return not gap.gap_test(gap_after, n_val, floor, min_ratio=min_ratio).significant
+    def test_of(gap_after: float) -> gap.GapTest:     # what an effect leaves, through the test that found the gap
+        return gap.gap_test(gap_after, n_val, floor, min_ratio=min_ratio)
+
+    def leaves_noise(gap_after: float) -> bool:
+        return not test_of(gap_after).significant
 
     verdict = decide_verdict(cands, test.significant, drift_ok, leaves_noise=leaves_noise)
     if id_err is not None and not id_err.get("generalises", True) and verdict != "none":
@@ -192,8 +195,8 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
     result = _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, test, additive, drift_ok,
                      fitter, id_err, by_effect, sim_model, origin, cost, groups)
     summary = result.to_dict()
-    if isinstance(verdict, Candidate):     # the same test on what the verdict's effect leaves
-        summary["test"]["after_verdict"] = gap.gap_test(verdict.gap_after, n_val, floor, min_ratio=min_ratio).to_dict()
+    if isinstance(verdict, Candidate):
+        summary["test"]["after_verdict"] = test_of(verdict.gap_after).to_dict()
     if extra is not None:
         extra(fitter, cands, verdict, groups, summary)
     summary["cost"]["seconds_total"] = time.perf_counter() - t_start
