@@ -272,6 +272,31 @@ def test_an_effect_that_leaves_only_noise_is_named_whatever_share_it_explains():
     assert verdict([clip], False, False, leaves_noise=leaves_noise) == "none"   # no gap, no effect
 
 
+def test_with_a_given_model_an_effect_that_leaves_twice_the_floor_is_not_named():
+    """A development rig with a saturation between G's two lags, diagnosed with its own simulator
+    as --model: curved borders explained 0.85 of a gap 20x the floor but left 3.16x it (the
+    saturation's static part, not what makes it). With a given model the bound makes the verdict
+    ``unexplained``; an effect leaving the floor is still named, and with no bound (an identified
+    model) the share alone decides."""
+    from hwid.diagnose.run import GIVEN_MAX_LEFT, _why_unexplained
+    from hwid.diagnose.verdict import Candidate, eligible, explained_fraction, verdict
+    sigma, before = 0.00996, 0.19843
+    bound = GIVEN_MAX_LEFT * sigma
+
+    def cand(name, ga, score, k):
+        return Candidate(name, "input", {}, ga, ga, explained_fraction(before, ga, sigma), score, k)
+    bend, clip = cand("curved_borders", 0.03146, 54813.0, 13.0), cand("input_saturation", 0.04809, 42264.0, 2.0)
+    assert bend.explained_fraction == pytest.approx(0.85, abs=0.01)
+    assert verdict([bend, clip], True, False) is bend
+    assert verdict([bend, clip], True, False, max_left=bound) == "unexplained"
+    why = _why_unexplained("unexplained", [bend, clip], False, None, bound, sigma)
+    assert "curved_borders" in why and "3.16x" in why
+    right = cand("curved_borders", 0.0102, 60000.0, 13.0)
+    assert verdict([right, clip], True, False, max_left=bound) is right
+    assert _why_unexplained(right, [right, clip], False, None, bound, sigma) == ""
+    assert not eligible(bend, False, max_left=bound) and eligible(bend, False)
+
+
 def test_drift_is_additive_against_a_wandering_gain():
     """Repeat differences of a slow additive drift (time constant 80 or 400 s, s.d. 0.05) are
     additive, their fast part is (almost) noise and hardly follows the output; those of a gain that
