@@ -269,3 +269,30 @@ def test_a_slow_actuator_is_fitted_with_its_rate_from_the_start():
     assert found == pytest.approx(rate, rel=0.03)
     assert fit.result_.sigma < 1.1 * 0.01
     assert any("slews at" in w for w in fit.result_.warnings)
+
+
+@pytest.mark.parametrize("limits", [(-0.9, 0.7), None])
+def test_an_actuator_that_stops_short_is_fitted_with_its_limits(limits):
+    """Random levels from -1.2 to 1.2 through an actuator that stops at -0.9 and 0.7: the fit with
+    the input's limits added (:func:`fit_clip_added`) finds both within 0.01 and leaves the noise,
+    and F's intervals hold the plant's; without a clip the limits are not kept."""
+    from hwid.identify.whole_clip import fit_clip_added
+    _, truth = _plant()
+    rng = np.random.default_rng(21)
+    dt, out = 0.05, []
+    for i in range(2):
+        u = _levels_with_ramps(rng, 20, 3.0, 1.0, dt)
+        x = truth.simulate(u if limits is None else np.clip(u, *limits), dt).x
+        out.append(Record(f"levels_{i}", dt, u, x + 0.01 * rng.standard_normal(u.size)))
+    fit = WholeModelFit(max_degree=3, structures=[Structure(1, 0)], types=("backlash",)).fit(out)
+    found = fit_clip_added(fit)
+    if limits is None:
+        assert found is None
+        return
+    assert found == pytest.approx(limits, abs=0.01)
+    res = fit.result_
+    assert res.sigma < 1.1 * 0.01
+    norm = truth.normalised()
+    for name in ("d_plus", "d_minus", "slope_down"):
+        assert _inside(getattr(res, name), res.ci[name], getattr(norm.input, name)), name
+    assert any("clipped to" in w for w in res.warnings)

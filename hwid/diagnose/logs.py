@@ -242,6 +242,7 @@ def identify_from_logs(cfg, pieces, out: Path, echo, rate_first: bool = False) -
     (:func:`hwid.identify.whole_rate.fit_rate_first`)."""
     from hwid.identify.history import identify_recorded
     from hwid.identify.whole import WholeModelFit
+    from hwid.identify.whole_clip import fit_clip_added
     from hwid.identify.whole_rate import fit_rate_added, fit_rate_first
     from hwid.model import InputNonlinearity
     t0 = time.perf_counter()
@@ -267,10 +268,15 @@ def identify_from_logs(cfg, pieces, out: Path, echo, rate_first: bool = False) -
     # a slow actuator the fit without it would mimic with a G many times slower than the plant's:
     # its rate is fitted too, taken out of the model and left to rate_limit as a start
     rate = fit_rate_added(fitter)
-    return _whole_model(cfg, fitter, rate, pieces, out, echo, t0)
+    # an actuator that stops short, which the fit without it mimics with a bent F, G and h (and a
+    # slew): its limits likewise, left to input_saturation; they replace a rate that stood in for them
+    clip = fit_clip_added(fitter)
+    if not fitter.problem_.with_rate:
+        rate = None
+    return _whole_model(cfg, fitter, rate, pieces, out, echo, t0, clip)
 
 
-def _whole_model(cfg, fitter, rate, pieces, out: Path, echo, t0: float) -> tuple:
+def _whole_model(cfg, fitter, rate, pieces, out: Path, echo, t0: float, clip=None) -> tuple:
     """The whole fit's result written (``whole.h5``) and said; the model without G's slow pairs, and
     its origin."""
     from hwid.results import write_whole
@@ -280,13 +286,15 @@ def _whole_model(cfg, fitter, rate, pieces, out: Path, echo, t0: float) -> tuple
          f"d+ = {res.d_plus:.4g}, d- = {res.d_minus:.4g}, S^d = {res.slope_down:.4g}, h degree "
          f"{len(res.h_coefficients) - 1}, G {res.structure}"
          + (f" with a delay of {res.delay:.4g} s" if res.delay > 0 else "") + f", sigma {res.sigma:.4g}"
-         + (f"; the input slews at {rate:.4g} units/s (left to rate_limit)" if rate else ""))
+         + (f"; the input slews at {rate:.4g} units/s (left to rate_limit)" if rate else "")
+         + (f"; the input is clipped to [{clip[0]:.4g}, {clip[1]:.4g}] (left to input_saturation)" if clip else ""))
     u = np.concatenate([p.u for p in pieces])
     model, notes = without_slow_pairs(res.model(), 2 * np.pi / max(p.u.size * p.dt for p in pieces), echo,
                                       "the records (2 pi / their longest)")
     return model, {"source": "identified", "fit": "whole", "records": list(pieces), "starts": dict(res.initial_states),
                    "u_range": [float(u.min()), float(u.max())], "notes": list(res.warnings) + notes,
-                   "input_rate_taken_out": rate or 0.0}
+                   "input_rate_taken_out": rate or 0.0,
+                   "input_clip_taken_out": [float(c) for c in clip] if clip else None}
 
 
 def without_slow_pairs(model, lo: float, echo, what: str = "the records") -> tuple:

@@ -92,7 +92,7 @@ class EffectFitter:
 
     def __init__(self, sim_fit, y_fit, m_fit, sim_val, y_val, m_val, names_val, scale, sigma, kappa,
                  max_samples: int = 60000, refit_h: bool = False, refit_g: bool = False, band=None,
-                 strip_identified: bool = False, rate_hint: float = 0.0):
+                 strip_identified: bool = False, hints: dict | None = None):
         self.sf, self.sv = sim_fit, sim_val
         self.yf, self.yv = [np.asarray(y, float) for y in y_fit], [np.asarray(y, float) for y in y_val]
         self.mf, self.mv = [np.asarray(m, bool) for m in m_fit], [np.asarray(m, bool) for m in m_val]
@@ -118,9 +118,10 @@ class EffectFitter:
         # group delay of right-half-plane zeros (time_delay)
         self.modes: list[tuple[float, float]] = []
         self.delay_hint = 0.0
-        # the input's slew rate the whole fit from logs found and took out of the model
-        # (:mod:`hwid.identify.whole_rate`): a start of rate_limit, with the identified G
-        self.rate_hint = float(rate_hint)
+        # what the whole fit from logs found of the actuator and took out of the model (the input's
+        # slew rate, :mod:`hwid.identify.whole_rate`; its limits, :mod:`hwid.identify.whole_clip`):
+        # starts of those effects' own parameters, with the identified G
+        self.hints = {k: [np.asarray(t, float) for t in v] for k, v in (hints or {}).items()}
         self.cancelled_pairs: list = []
         if self.refit_h and refit_g:
             self._init_g(sim_fit.model.input, sim_fit.model.linear)
@@ -465,8 +466,7 @@ class EffectFitter:
                     # the model that had the mode, which a refit G started elsewhere may not
                     # reach (a mode at zeta 0.02 came back with half the gap left)
                     starts += [np.r_[np.array(m, float), np.zeros(self.n_g)] for m in self.modes]
-                if eff.name == "rate_limit" and self.rate_hint > 0:
-                    starts += [np.r_[self.rate_hint, c, np.zeros(self.n_g)] for c in (0.0, 1.0)]
+                starts += [np.r_[t, np.zeros(self.n_g)] for t in self.hints.get(eff.name, [])]
         costs = []
         for th in starts:
             th = np.clip(th, lo, hi)

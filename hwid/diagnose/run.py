@@ -161,7 +161,7 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
                                [val.exps[i].name for i in val.val_idx], val.scale, floor.sigma, floor.kappa,
                                refit_h=identified, refit_g=identified,
                                band=(_sine_band(cfg) if band is None else band) if identified else None,
-                               rate_hint=float(origin.get("input_rate_taken_out", 0.0)))
+                               hints=actuator_hints(origin))
     gap_ref = fitter.gap_ref
     id_err = None
     if identified:
@@ -224,6 +224,20 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
          f"(block {summary['verdict']['block']}, explained {explained:.2f}); "
          f"gap {summary['gap_before']:.4g} -> {summary['gap_after']:.4g}, noise floor {floor.sigma:.4g}")
     return summary
+
+
+def actuator_hints(origin: dict) -> dict:
+    """Starts of the effects whose parameters the whole fit from logs found and took out of the
+    model (``input_rate_taken_out``: ``rate_limit``, carried or not; ``input_clip_taken_out``:
+    ``input_saturation``), for :class:`hwid.diagnose.rank.EffectFitter`."""
+    hints = {}
+    rate = float(origin.get("input_rate_taken_out", 0.0) or 0.0)
+    if rate > 0:
+        hints["rate_limit"] = [[rate, 0.0], [rate, 1.0]]
+    clip = origin.get("input_clip_taken_out")
+    if clip:
+        hints["input_saturation"] = [list(map(float, clip))]
+    return hints
 
 
 def _why_unexplained(verdict, cands, drift_ok: bool, leaves_noise, max_left, sigma: float) -> str:
@@ -300,7 +314,7 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
         alternative = rank.EffectFitter(val.sim_fit, fitter.yf, fitter.mf, val.sim_val, val.y_val, val.m_val,
                                         fitter.names_val, val.scale, floor.sigma, floor.kappa, refit_h=True,
                                         refit_g=True, band=fitter.band, strip_identified=True,
-                                        rate_hint=fitter.rate_hint)
+                                        hints=fitter.hints)
         echo(f"the identified G has a lightly damped mode outside the band: every effect also fitted "
              f"with it taken out before the refit (that baseline alone: {alternative.gap_ref:.4g})")
         # an effect fitted on the other baseline is not credited with what the switch removes by itself

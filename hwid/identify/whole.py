@@ -51,6 +51,9 @@ class _Problem:
     #: the input slews at most a fitted rate before F (a slow actuator the records show; see
     #: :func:`hwid.identify.whole_rate.fit_rate_added`)
     with_rate: bool = False
+    #: the input is clipped to a fitted ``[u_lo, u_hi]`` before F (an actuator that stops short of
+    #: the commanded range; see :func:`hwid.identify.whole_clip.fit_clip_added`)
+    with_clip: bool = False
     y: np.ndarray = field(init=False)
 
     def __post_init__(self):
@@ -67,7 +70,12 @@ class _Problem:
     @property
     def states_at(self) -> int:
         """Index of the first record's initial state in the outer parameters (after F's three,
-        G's, the delay's and the rate's)."""
+        G's, the delay's, the rate's and the clip's two)."""
+        return self.clip_at + 2 * int(self.with_clip)
+
+    @property
+    def clip_at(self) -> int:
+        """Index of the clip's lower limit in the outer parameters (where it has one; the upper follows)."""
         return self.rate_at + int(self.with_rate)
 
     @property
@@ -84,10 +92,11 @@ class _Problem:
         g = g_from_params(self.structure, theta[3:3 + self.structure.n_params], delay)
         states = []
         j = self.states_at
+        clip = self.clip(theta)
         for r in self.records:
             # a Backlash-Inverse's start is anywhere its branches reach over the record, not only
             # between their values at u[0] (a record that opens with a hold shows it all along)
-            lo, hi = f.start_band(r.u)
+            lo, hi = f.start_band(r.u if clip is None else np.clip(r.u, *clip))
             frac = 0.5 * (1.0 + np.tanh(0.5 * theta[j]))
             states.append((lo + frac * (hi - lo), float(theta[j + 1])))
             j += 2
@@ -96,9 +105,10 @@ class _Problem:
     def w(self, theta) -> np.ndarray:
         f, g, states = self.unpack(theta)
         out = []
-        rate = self.rate(theta)
+        rate, clip = self.rate(theta), self.clip(theta)
         for r, (gear, rest) in zip(self.records, states):
-            u = r.u if rate is None else slewed(r.u, rate, r.dt)
+            u = r.u if clip is None else np.clip(r.u, *clip)
+            u = u if rate is None else slewed(u, rate, r.dt)
             out.append(g.simulate(f.apply(u, gear), r.dt, rest))
         return np.concatenate(out)[self.keep]
 
@@ -107,6 +117,20 @@ class _Problem:
         if not self.with_rate:
             return None
         return float(np.exp(theta[self.rate_at]))
+
+    def clip(self, theta) -> tuple[float, float] | None:
+        """The input's limits ``(u_lo, u_hi)``, or None without them."""
+        if not self.with_clip:
+            return None
+        return float(theta[self.clip_at]), float(theta[self.clip_at + 1])
+
+    def clip_bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """Where the limits may go: ``u_lo`` from 5 % of the input's range below its least value to
+        its centre, ``u_hi`` from the centre to 5 % above its greatest (beyond, a limit is no limit)."""
+        u = np.concatenate([r.u for r in self.records])
+        a, b = float(u.min()), float(u.max())
+        c, m = 0.5 * (a + b), 0.05 * (b - a)
+        return (a - m, c), (c, b + m)
 
     def design(self, w) -> np.ndarray:
         return np.vander(w, self.degree + 1, increasing=True)[:, 1:]
@@ -132,6 +156,10 @@ class _Problem:
         if self.with_rate:     # from crossing the input's range in two minutes to in one sample
             lo.append(np.log(u_width / 120.0))
             hi.append(np.log(u_width / dt))
+        if self.with_clip:
+            (lo_a, lo_b), (hi_a, hi_b) = self.clip_bounds()
+            lo += [lo_a, hi_a]
+            hi += [lo_b, hi_b]
         for _ in self.records:
             lo += [-30.0, -np.inf]
             hi += [30.0, np.inf]

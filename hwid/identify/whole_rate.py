@@ -7,7 +7,7 @@ fitted with poles at 0.07 and 0.35 rad/s). That G is too far from the plant for 
 refit, which moves G's coefficients by a bounded factor, to reach the plant's G once the
 ``rate_limit`` effect is added, so no effect explained the gap. Fitted here, the rate is taken out
 of the model again and given to the diagnosis as the effect's start
-(:class:`hwid.diagnose.rank.EffectFitter`, ``rate_hint``), which must earn it back on the
+(:class:`hwid.diagnose.rank.EffectFitter`, ``hints``), which must earn it back on the
 validation part like any other effect.
 """
 from __future__ import annotations
