@@ -296,3 +296,16 @@ def test_an_actuator_that_stops_short_is_fitted_with_its_limits(limits):
     for name in ("d_plus", "d_minus", "slope_down"):
         assert _inside(getattr(res, name), res.ci[name], getattr(norm.input, name)), name
     assert any("clipped to" in w for w in res.warnings)
+
+
+def test_limits_at_the_inputs_centre_are_not_an_actuator_that_stops_short():
+    """A limit at the inner end of its range (the input's centre) is the clip standing in for
+    something else; limits short of the ends, or beyond them, are not pressed inward."""
+    from hwid.identify.whole import _Problem
+    from hwid.identify.whole_clip import _pressed_inward
+    u = np.linspace(-1.4, 1.2, 200)
+    prob = _Problem([Record("r", 0.05, u, np.zeros_like(u))], "backlash", Structure(1, 0), 3, False, with_clip=True)
+    assert _pressed_inward(prob, -1.52, -0.1)          # the upper limit at the centre, -0.1
+    assert _pressed_inward(prob, -0.12, 0.8)
+    assert not _pressed_inward(prob, -1.33, 0.76)
+    assert not _pressed_inward(prob, -1.53, 1.33)

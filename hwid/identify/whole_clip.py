@@ -32,7 +32,8 @@ def fit_clip_added(fitter: WholeModelFit) -> tuple[float, float] | None:
     the border grid and G's default (:func:`_grid_start`); the selected type and structure also
     from the selected fit, limits added. Every start is descended. The limits are kept where the
     criterion prefers the fit with them over every fit so far and over the same fit descended
-    again without them: ``fitter`` then holds that fit
+    again without them, and neither sits at the input's centre (:func:`_pressed_inward`):
+    ``fitter`` then holds that fit
     (``problem_``, ``theta_``, ``result_``, whose table gains the rows marked ``+clip``) and
     ``(u_lo, u_hi)`` is returned; else None and ``fitter`` keeps the best fit without limits (its
     table gains the rows)."""
@@ -65,6 +66,9 @@ def fit_clip_added(fitter: WholeModelFit) -> tuple[float, float] | None:
         fitter.result_ = replace(fitter.result_, selection=tuple(table))
         return None
     prob, x, _ = list(best.values())[i]
+    if _pressed_inward(prob, *prob.clip(x)):
+        fitter.result_ = replace(fitter.result_, selection=tuple(table))
+        return None
     # the limits must earn their parameters against their own fit without them: from another
     # start the search may only have found a better valley (limits beyond the input's reach, or
     # pressed into its last levels), which is the model's, not the actuator's
@@ -87,6 +91,17 @@ def fit_clip_added(fitter: WholeModelFit) -> tuple[float, float] | None:
         f"the input is clipped to [{lo:.4g}, {hi:.4g}] in this fit; F, G and h are fitted with it, "
         "and the model here leaves it out",))
     return lo, hi
+
+
+def _pressed_inward(prob: _Problem, lo: float, hi: float) -> bool:
+    """Whether a limit sits at the input's centre, the inner end of its range (within 2 % of the
+    range): the fit then wants the input stopped short of half its travel, which is the clip
+    standing in for something else (a 4 s sensor lag on the paper's plant was fitted with an
+    actuator that never passed -0.1 of a range -1.4 to 1.2), not an actuator that stops short."""
+    (_, lo_in), (hi_in, _) = prob.clip_bounds()
+    u = np.concatenate([r.u for r in prob.records])
+    tol = 0.02 * float(np.ptp(u))
+    return bool(lo >= lo_in - tol or hi <= hi_in + tol)
 
 
 def _grid_start(fitter: WholeModelFit, prob: _Problem) -> np.ndarray:
