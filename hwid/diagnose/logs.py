@@ -248,8 +248,8 @@ def identify_from_logs(cfg, pieces, out: Path, echo, rate_first: bool = False) -
     t0 = time.perf_counter()
     if rate_first:
         fitter = WholeModelFit.from_config(cfg, staged=True)
-        rate = fit_rate_first(fitter, pieces)
-        return _whole_model(cfg, fitter, rate, pieces, out, echo, t0)
+        fit_rate_first(fitter, pieces)
+        return _whole_model(cfg, fitter, pieces, out, echo, t0)
     try:    # stage 1 from the fit part's levels starts the borders, where they hold enough
         hist = identify_recorded(cfg, pieces)
         borders = InputNonlinearity(hist.type, 1.0, hist.slope_down, hist.d_plus, hist.d_minus)
@@ -267,20 +267,20 @@ def identify_from_logs(cfg, pieces, out: Path, echo, rate_first: bool = False) -
     fitter = WholeModelFit.from_config(cfg, staged=True).fit_delay_added(pieces, borders=borders)
     # a slow actuator the fit without it would mimic with a G many times slower than the plant's:
     # its rate is fitted too, taken out of the model and left to rate_limit as a start
-    rate = fit_rate_added(fitter)
+    fit_rate_added(fitter)
     # an actuator that stops short, which the fit without it mimics with a bent F, G and h (and a
     # slew): its limits likewise, left to input_saturation; they replace a rate that stood in for them
-    clip = fit_clip_added(fitter)
-    if not fitter.problem_.with_rate:
-        rate = None
-    return _whole_model(cfg, fitter, rate, pieces, out, echo, t0, clip)
+    fit_clip_added(fitter)
+    return _whole_model(cfg, fitter, pieces, out, echo, t0)
 
 
-def _whole_model(cfg, fitter, rate, pieces, out: Path, echo, t0: float, clip=None) -> tuple:
+def _whole_model(cfg, fitter, pieces, out: Path, echo, t0: float) -> tuple:
     """The whole fit's result written (``whole.h5``) and said; the model without G's slow pairs, and
-    its origin."""
+    its origin (with the slew rate and the limits the selected fit has, which the model leaves out)."""
     from hwid.results import write_whole
     res = fitter.result_
+    rate = fitter.problem_.rate(fitter.theta_)
+    clip = fitter.problem_.clip(fitter.theta_)
     write_whole(out / "whole.h5", cfg, res)
     echo(f"identified the model from the fit records ({time.perf_counter() - t0:.1f} s): {res.type}, "
          f"d+ = {res.d_plus:.4g}, d- = {res.d_minus:.4g}, S^d = {res.slope_down:.4g}, h degree "

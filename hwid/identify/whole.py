@@ -24,7 +24,7 @@ one degree of h_bar higher (:meth:`WholeModelFit._result` says why).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
@@ -111,6 +111,13 @@ class _Problem:
             u = u if rate is None else slewed(u, rate, r.dt)
             out.append(g.simulate(f.apply(u, gear), r.dt, rest))
         return np.concatenate(out)[self.keep]
+
+    @property
+    def label(self) -> str:
+        """Its selection-table row's structure: G's, marked ``+delay``, ``+rate`` and ``+clip`` where
+        those were fitted too."""
+        return (str(self.structure) + "+delay" * self.with_delay + "+rate" * self.with_rate
+                + "+clip" * self.with_clip)
 
     def rate(self, theta) -> float | None:
         """The input's slew rate (units/s), or None without one."""
@@ -288,7 +295,7 @@ class WholeModelFit:
                                                    max_nfev=self.max_nfev)
                     if sol is None or trial.cost < sol.cost:
                         sol = trial
-                row = _row(prob, float(sol.fun @ sol.fun), self._label(structure))
+                row = _row(prob, float(sol.fun @ sol.fun))
                 aic = row["aic"]
                 if (kind, structure, degree) not in solutions or aic < solutions[kind, structure, degree][2]:
                     solutions[kind, structure, degree] = (prob, sol.x, float(aic))
@@ -336,7 +343,7 @@ class WholeModelFit:
         if moved is not None:
             # the selected fit sat at another origin of h_bar: its type and structure's degree
             # path again from the one found there, so the degree is chosen among fits there
-            own = (prob.type, self._label(prob.structure))
+            own = (prob.type, prob.label)
             before = {r["degree"]: r for r in table if (r["type"], r["structure"]) == own}
             table[:] = [r for r in table if (r["type"], r["structure"]) != own]
             for row in path(prob.type, prob.structure, list(degrees), first=moved):
@@ -351,7 +358,7 @@ class WholeModelFit:
         pole = (pole_for_delay if self.delay else pole_for_rhp_zero)(prob, theta, width, span, dt, self.max_nfev)
         if pole is not None:
             prob, theta, rss = pole
-            table.append(_row(prob, rss, str(prob.structure)))
+            table.append(_row(prob, rss))
         self.problem_, self.theta_ = prob, theta
         self.result_ = self._result(prob, theta, table, solutions.get((prob.type, prob.structure, prob.degree + 1)))
         return self
@@ -381,12 +388,8 @@ class WholeModelFit:
             f = start.input
             return np.array([f.d_plus, np.log(f.slope_down), np.log(max(f.d_plus - f.d_minus, 1e-6)),
                              *g_p, *extra, *states], float)
-        u_all = np.concatenate([r.u for r in records])
-        width = float(np.ptp(u_all)) or 1.0
-        centre = float(np.median(u_all))
         prob = _Problem(records, kind, structure, self.max_degree, self.delay)
-        grid = [np.array([centre + a * width, 0.0, np.log(b * width), *g_p, *extra, *states])
-                for a in np.linspace(-0.25, 0.25, 7) for b in (0.02, 0.1, 0.3, 0.6)]
+        grid = [np.array([d_plus, 0.0, log_gap, *g_p, *extra, *states]) for d_plus, log_gap in border_grid(records)]
         if borders is not None:
             # the borders (stage 1 from the levels) compete with the grid: from few levels they can
             # be far off while fitting those levels exactly, and the moving records then say so
@@ -395,6 +398,13 @@ class WholeModelFit:
                                      *g_p, *extra, *states], float))
         costs = [float(np.sum(prob.residual(t) ** 2)) for t in grid]
         return grid[int(np.argmin(costs))]
+
+    def hold(self, prob: _Problem, theta, table, note: str = "") -> None:
+        """Make the fit ``theta`` of ``prob`` the selected one (``problem_``, ``theta_``, ``result_``
+        with the selection ``table``); ``note`` joins its warnings (what the model leaves out)."""
+        self.problem_, self.theta_ = prob, theta
+        res = self._result(prob, theta, table)
+        self.result_ = replace(res, warnings=res.warnings + (note,)) if note else res
 
     def _result(self, prob: _Problem, theta, table, richer=None) -> WholeResult:
         """The result of the selected fit; ``richer`` is ``(problem, theta)`` of the same type and
@@ -458,16 +468,26 @@ class WholeModelFit:
         return ci, s2, r, warnings
 
 
+def border_grid(records) -> list[tuple[float, float]]:
+    """The coarse grid of borders a fit without a start begins from: ``(d_plus, log(d_plus -
+    d_minus))`` with ``d_plus`` across the middle half of the input's range about its median and
+    the play 2 %, 10 %, 30 % and 60 % of the range."""
+    u = np.concatenate([r.u for r in records])
+    width, centre = float(np.ptp(u)) or 1.0, float(np.median(u))
+    return [(centre + a * width, float(np.log(b * width)))
+            for a in np.linspace(-0.25, 0.25, 7) for b in (0.02, 0.1, 0.3, 0.6)]
+
+
 def _extent(records) -> tuple[float, float, float]:
     """``(span, dt, width)``: the longest record (s), the shortest sampling time and the input's range."""
     return (max(r.u.size * r.dt for r in records), min(r.dt for r in records),
             float(np.ptp(np.concatenate([r.u for r in records]))) or 1.0)
 
 
-def _row(prob: _Problem, rss: float, label: str) -> dict:
+def _row(prob: _Problem, rss: float) -> dict:
     """A selection-table row of the fit of ``prob`` with residual sum of squares ``rss``."""
     k = prob.n_outer + prob.degree
-    return {"type": prob.type, "structure": label, "degree": prob.degree, "rss": rss, "parameters": k,
+    return {"type": prob.type, "structure": prob.label, "degree": prob.degree, "rss": rss, "parameters": k,
             "aic": _criterion(rss, prob.y.size, k, prob.degree)}
 
 
@@ -640,7 +660,6 @@ def fit_records(records, periods: int = 3):
     """The experiments as the whole-model fit takes them: a sine experiment (attribute ``omega``)
     cut to its last ``periods`` periods, the first of them a burn-in left out of the cost (its
     steady state is what matters, and its length would dominate the cost); others whole."""
-    from dataclasses import replace
     out = []
     for r in records:
         omega = r.attrs.get("omega")

@@ -17,7 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from hwid.identify.whole import STRUCTURES, WholeModelFit, _best_states, _descend, _Problem, _row
+from hwid.identify.whole import STRUCTURES, WholeModelFit, _best_states, _descend, _Problem, _row, border_grid
 
 #: the limits the fit starts from: this many places of each, from the input's centre to its end,
 #: the last beyond the end (no limit on that side)
@@ -58,8 +58,7 @@ def fit_clip_added(fitter: WholeModelFit) -> tuple[float, float] | None:
         key = (prob.type, str(prob.structure))
         if key not in best or rss < best[key][2]:
             best[key] = (prob, x, rss)
-    rows = [_row(p, rss, str(p.structure) + ("+delay" if p.with_delay else "") + "+clip")
-            for p, _, rss in best.values()]
+    rows = [_row(p, rss) for p, _, rss in best.values()]
     i = int(np.argmin([r["aic"] for r in rows]))
     table = list(fitter.result_.selection) + rows
     if rows[i]["aic"] >= min(r["aic"] for r in fitter.result_.selection):
@@ -75,21 +74,17 @@ def fit_clip_added(fitter: WholeModelFit) -> tuple[float, float] | None:
     free = _Problem(records, prob.type, prob.structure, prob.degree, prob.with_delay)
     k = prob.clip_at
     (x0, rss0), = _descend([free], [np.concatenate([x[:k], x[k + 2:]])], fitter.max_nfev)
-    row0 = _row(free, rss0, str(free.structure) + ("+delay" if free.with_delay else ""))
+    row0 = _row(free, rss0)
     table.append(row0)
     if row0["aic"] <= rows[i]["aic"]:
         if row0["aic"] < min(r["aic"] for r in fitter.result_.selection):
-            fitter.problem_, fitter.theta_ = free, x0
-            fitter.result_ = fitter._result(free, x0, table)
+            fitter.hold(free, x0, table)
         else:
             fitter.result_ = replace(fitter.result_, selection=tuple(table))
         return None
-    fitter.problem_, fitter.theta_ = prob, x
-    res = fitter._result(prob, x, table)
     lo, hi = prob.clip(x)
-    fitter.result_ = replace(res, warnings=res.warnings + (
-        f"the input is clipped to [{lo:.4g}, {hi:.4g}] in this fit; F, G and h are fitted with it, "
-        "and the model here leaves it out",))
+    fitter.hold(prob, x, table, f"the input is clipped to [{lo:.4g}, {hi:.4g}] in this fit; F, G and h are "
+                                "fitted with it, and the model here leaves it out")
     return lo, hi
 
 
@@ -113,14 +108,11 @@ def _grid_start(fitter: WholeModelFit, prob: _Problem) -> np.ndarray:
     start = WholeModelFit(fitter.max_degree, [prob.structure], prob.with_delay, (prob.type,))._start(
         prob.records, prob.type, prob.structure, None)
     theta = _best_limits(prob, np.concatenate([start[:k], [0.0, 0.0], start[k:]]))
-    u = np.concatenate([r.u for r in prob.records])
-    width, centre = float(np.ptp(u)) or 1.0, float(np.median(u))
     trials = []
-    for a in np.linspace(-0.25, 0.25, 7):       # the border grid of WholeModelFit._start
-        for b in (0.02, 0.1, 0.3, 0.6):
-            t = theta.copy()
-            t[0], t[2] = centre + a * width, np.log(b * width)
-            trials.append(t)
+    for d_plus, log_gap in border_grid(prob.records):
+        t = theta.copy()
+        t[0], t[2] = d_plus, log_gap
+        trials.append(t)
     theta = min(trials + [theta], key=lambda t: float(np.sum(prob.residual(t) ** 2)))
     return _best_states(prob, _best_limits(prob, theta))
 

@@ -40,7 +40,7 @@ def fit_delay_added(fitter: WholeModelFit, records, borders=None) -> WholeModelF
     probs = [_Problem(records, base.type, s, base.degree, True)
              for s in (f.structures or STRUCTURES) if s.order <= base.structure.order]
     fits = _descend(probs, [_delayed_start(base, theta, p.structure, span, dt) for p in probs], f.max_nfev)
-    rows = [_row(p, rss, delayed._label(p.structure)) for p, (_, rss) in zip(probs, fits)]
+    rows = [_row(p, rss) for p, (_, rss) in zip(probs, fits)]
     i = int(np.argmin([r["aic"] for r in rows]))
     prob, x = probs[i], fits[i][0]
     table = list(plain.result_.selection) + rows
@@ -51,7 +51,7 @@ def fit_delay_added(fitter: WholeModelFit, records, borders=None) -> WholeModelF
     pole = pole_for_delay(prob, x, width, span, dt, f.max_nfev)
     if pole is not None:
         prob, x, rss = pole
-        table.append(_row(prob, rss, str(prob.structure)))
+        table.append(_row(prob, rss))
     fitter.problem_, fitter.theta_ = prob, x
     fitter.result_ = delayed._result(prob, x, table)
     return fitter

@@ -83,16 +83,12 @@ def _rate_fits(fitter: WholeModelFit, records, degree: int, with_delay: bool, ma
             probs.append(prob)
             starts.append(_best_states(prob, trials[int(np.argmin(costs))]))
     fits = _descend(probs, starts, fitter.max_nfev)
-    rows = [_row(p, rss, str(p.structure) + ("+delay" if with_delay else "") + "+rate")
-            for p, (_, rss) in zip(probs, fits)]
+    rows = [_row(p, rss) for p, (_, rss) in zip(probs, fits)]
     return probs, fits, rows
 
 
 def _keep(fitter: WholeModelFit, prob, x, table) -> None:
-    """``fitter`` holds the fit with a rate; its result says the model leaves the rate out."""
-    fitter.problem_, fitter.theta_ = prob, x
-    res = fitter._result(prob, x, table)
-    # the result's model has no slew: say so where the result is read (whole.h5, the JSON's notes)
-    fitter.result_ = replace(res, warnings=res.warnings + (
-        f"the input slews at {prob.rate(x):.4g} units/s in this fit; F, G and h are fitted with it, "
-        "and the model here leaves it out",))
+    """``fitter`` holds the fit with a rate; its result says the model leaves the rate out (where
+    the result is read: whole.h5, the JSON's notes)."""
+    fitter.hold(prob, x, table, f"the input slews at {prob.rate(x):.4g} units/s in this fit; F, G and h are "
+                                "fitted with it, and the model here leaves it out")
