@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import optimize, special
 
 from hwid import HwidError
 from hwid.model import HWModel
@@ -151,12 +151,12 @@ def compare_records(model: HWModel, records, noise_floor: float | None = None,
         ys.append(rec.y)
         yhs.append(y_hat)
         fits.append(ExperimentFit(rec.name, fit_percent(rec.y, y_hat), float(np.sqrt(np.mean(residual ** 2))),
-                                  int(rec.y.size), gear, rest, float(stats.chi2.sf(qw, mw)),
-                                  float(stats.chi2.sf(qi, mi))))
+                                  int(rec.y.size), gear, rest, float(special.chdtrc(mw, qw)),
+                                  float(special.chdtrc(mi, qi))))
     y_all, yh_all = np.concatenate(ys), np.concatenate(yhs)
     result = CompareResult(fit_percent(y_all, yh_all), float(np.sqrt(np.mean((y_all - yh_all) ** 2))),
-                           noise_floor, tuple(fits), float(stats.chi2.sf(q_white, dof_white)),
-                           float(stats.chi2.sf(q_input, dof_input)), dict(model_info or {}))
+                           noise_floor, tuple(fits), float(special.chdtrc(dof_white, q_white)),
+                           float(special.chdtrc(dof_input, q_input)), dict(model_info or {}))
     return result, sims
 
 

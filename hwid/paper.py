@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 from hwid import protocols
 from hwid.model import from_config
@@ -81,7 +81,7 @@ def table1_rows(cfg, result) -> dict:
     # simultaneous (Sidak) 95 % intervals over all levels of the table: each pointwise interval
     # widened from z_{0.975} to z_{(1 + 0.95^{1/n})/2}, so all n hold the truth together w.p. 95 %
     n = len(result.X_hat)
-    widen = stats.norm.ppf(0.5 + 0.5 * 0.95 ** (1.0 / n)) / stats.norm.ppf(0.975)
+    widen = special.ndtri(0.5 + 0.5 * 0.95 ** (1.0 / n)) / special.ndtri(0.975)
     rows = []
     for j, (u, x, ci, xt) in enumerate(zip(result.levels, result.X_hat, result.ci["X_hat"], Xt), start=1):
         px, pxh = published.get(j, (None, None))

@@ -65,18 +65,25 @@ def _run_shared(job):
     return _SHARED(job)
 
 
-def forked_map(fun, jobs) -> list:
+def forked_map(fun, jobs, cost=None) -> list:
     """``[fun(job) for job in jobs]``, in forked workers (one BLAS thread each) where
     :func:`workers` allows more than one; ``fun`` may be a closure (it is not pickled, only the jobs
-    and the results are)."""
+    and the results are). ``cost(job)``: a job's expected run time, relative; the workers take the
+    jobs longest first (a long job handed out last keeps one worker busy while the others idle),
+    and the results come back in the order of ``jobs``."""
     global _SHARED
     jobs = list(jobs)
     n = min(workers(), len(jobs))
     if n <= 1:
         return [fun(job) for job in jobs]
+    order = sorted(range(len(jobs)), key=lambda i: -cost(jobs[i])) if cost else list(range(len(jobs)))
     _SHARED = fun
     try:
         with multiprocessing.get_context("fork").Pool(n, initializer=limit_blas_threads) as pool:
-            return pool.map(_run_shared, jobs, chunksize=1)
+            done = pool.map(_run_shared, [jobs[i] for i in order], chunksize=1)
     finally:
         _SHARED = None
+    out = [None] * len(jobs)
+    for i, r in zip(order, done):
+        out[i] = r
+    return out

@@ -136,6 +136,8 @@ class Effect:
     post_linear = True
 
     def post(self, x, theta, dt: float) -> np.ndarray:
+        """The output stage on ``x`` along its first axis (where ``post_linear``, h's design matrix
+        passes through it whole, each column alike)."""
         return x
 
 
@@ -308,31 +310,45 @@ class CurvedBorders(Effect):
         out[1 + k2:1 + k2 + k] = th[1 + k:1 + 2 * k]
         return e, out
 
-    def _bend(self, s, c):
-        """``sum c_j P_j(s)`` over the fit span, continued along its tangent beyond it."""
+    def _bend_basis(self, u) -> np.ndarray:
+        """The bend's basis on the input ``u``: column ``j`` is ``P_j(s)`` over the fit span,
+        continued along its tangent beyond it, so a bend is this matrix times its coefficients.
+        Kept for each input array seen (a fit simulates the same experiments hundreds of times)."""
+        cache = self.__dict__.setdefault("_bases", {})
+        hit = cache.get(id(u))
+        if hit is not None and hit[0] is u:
+            return hit[1]
         leg = np.polynomial.legendre
-        a, b = self._fit_span
-        inside = np.clip(s, a, b)
-        out = leg.legval(inside, c)
-        d = leg.legder(c)
-        return out + leg.legval(a, d) * np.minimum(s - a, 0.0) + leg.legval(b, d) * np.maximum(s - b, 0.0)
+        sc, (a, b), k = self._scale, self._fit_span, self.degree
+        s = (np.asarray(u, float) - sc[0]) / sc[1]
+        B = leg.legvander(np.clip(s, a, b), k)
+        for end, beyond in ((a, np.minimum(s - a, 0.0)), (b, np.maximum(s - b, 0.0))):
+            if np.isfinite(end):
+                slopes = np.array([leg.legval(end, leg.legder(np.eye(k + 1)[j])) for j in range(k + 1)])
+                B = B + np.outer(beyond, slopes)
+        cache[id(u)] = (u, B)
+        return B
+
+    def __getstate__(self):
+        """Without the bases (a fitted family travels back from a worker as its parameters)."""
+        return {k: v for k, v in self.__dict__.items() if k != "_bases"}
 
     def simulate(self, sim, theta, i):
         F = sim.model.input
         u = sim.inputs[i]
         sc = self._scale
-        s = (u - sc[0]) / sc[1]
         th = np.asarray(theta, float)
         k = self.degree
         c_up, c_dn = np.r_[th[0], th[1:1 + k]], np.r_[th[0], th[1 + k:1 + 2 * k]]
+        B = self._bend_basis(u)
         if F.type == "backlash":
-            up = F.ascending(u) + F.slope_up * sc[1] * self._bend(s, c_up)
-            dn = F.descending(u) + F.slope_down * sc[1] * self._bend(s, c_dn)
+            up = F.ascending(u) + F.slope_up * sc[1] * (B @ c_up)
+            dn = F.descending(u) + F.slope_down * sc[1] * (B @ c_dn)
             v0 = float(np.clip(0.0, up[0], dn[0])) if dn[0] >= up[0] else 0.5 * (up[0] + dn[0])
             v = _play_arrays(np.ascontiguousarray(up), np.ascontiguousarray(np.maximum(dn, up)), v0)
         else:
-            up = F.ascending(u) + sc[1] / F.slope_up * self._bend(s, c_up)
-            dn = F.descending(u) + sc[1] / F.slope_down * self._bend(s, c_dn)
+            up = F.ascending(u) + sc[1] / F.slope_up * (B @ c_up)
+            dn = F.descending(u) + sc[1] / F.slope_down * (B @ c_dn)
             v = _direction_arrays(u, np.ascontiguousarray(up), np.ascontiguousarray(dn), 0.5 * (up[0] + dn[0]))
         return sim.from_v(v)
 

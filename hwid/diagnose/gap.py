@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 
 from hwid.diagnose.modelsim import smooth
 from hwid.diagnose.experiments import REGIONS
@@ -304,6 +303,7 @@ def frequencies(exps, residuals, nf: NoiseFloor, dt: float, top: int = 6) -> lis
             nper = int(min(2048, rm.size // 4))
             if nper < 64:
                 continue
+            from scipy import signal   # here: scipy.signal costs half a second at start-up
             f, pr = signal.welch(rm, fs=1 / dt, nperseg=nper)
             _, pn = signal.welch(nf.surrogate, fs=1 / dt, nperseg=nper)
             segs = max(2 * rm.size // nper - 1, 1)

@@ -71,10 +71,24 @@ def deadzone(u, delta: float) -> np.ndarray:
 
 
 def first_order(x, tau: float, dt: float) -> np.ndarray:
-    """``1/(tau s + 1)`` applied to ``x`` (exact for a zero-order-held input), from equilibrium."""
-    if tau <= 0:
-        return np.asarray(x, float)
-    return simulate_linear(LinearBlock((1.0,), (float(tau), 1.0)), x, dt)
+    """``1/(tau s + 1)`` applied to ``x`` (exact for a zero-order-held input), from equilibrium;
+    a matrix is filtered column by column (a design matrix whose columns all pass the lag).
+
+    The sampled lag is ``y[k+1] = a y[k] + (1 - a) x[k]``, ``a = exp(-dt/tau)``, ``y[0] = x[0]``."""
+    x = np.asarray(x, float)
+    if tau <= 0 or x.shape[0] == 0:
+        return x
+    y = _first_order_rows(np.ascontiguousarray(x.reshape(x.shape[0], -1)), float(np.exp(-dt / float(tau))))
+    return y.reshape(x.shape)
+
+
+@njit(cache=True)
+def _first_order_rows(x, a):
+    y = np.empty_like(x)
+    y[0] = x[0]
+    for k in range(1, x.shape[0]):
+        y[k] = a * y[k - 1] + (1.0 - a) * x[k - 1]
+    return y
 
 
 def smooth(r, width: int) -> np.ndarray:

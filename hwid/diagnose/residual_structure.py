@@ -24,7 +24,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 #: family-wise level of the tests together
 ALPHA = 0.01
@@ -176,6 +175,7 @@ def residual_structure(segments, alpha: float = ALPHA) -> list[dict]:
     :func:`gls_wald_groups`), so a large misfit of one kind does not make every other kind
     significant through what they share (a stick-slip's square wave is also periodic). The
     p-value of an item is that of its step."""
+    from scipy import stats     # here: scipy.stats costs half a second at start-up
     segs = [s for s in segments if s.u.size and np.any(s.keep)]
     if not segs:
         return [{"kind": "none", "evidence": "no residual to test", "p_value": 1.0}]

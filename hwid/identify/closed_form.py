@@ -12,7 +12,7 @@ from typing import Any, Optional
 import numpy as np
 from numba import njit
 from numpy.polynomial import Polynomial
-from scipy import stats
+from scipy import special
 
 from hwid.identify.lm import lm
 from hwid.identify.stage1_model import (LevelData, ascending_index, descending_index, joint_chi2,
@@ -31,7 +31,7 @@ def flat_run(x, se, ref_x: list, ref_se: list, alpha: float) -> tuple[int, list[
 
     Each point is compared with the weighted mean of the path so far by a two-sided z test at the
     Bonferroni level ``alpha / len(x)``."""
-    zc = stats.norm.isf(alpha / (2 * max(len(x), 1)))
+    zc = -special.ndtri(alpha / (2 * max(len(x), 1)))
     mx, ms = list(ref_x), list(ref_se)
     zs: list[float] = []
     for xj, sj in zip(x, se):

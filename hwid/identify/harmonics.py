@@ -26,7 +26,7 @@ from math import comb
 
 import numpy as np
 from numba import njit
-from scipy import stats
+from scipy import special
 
 from hwid.blocks.static import polyval
 
@@ -448,7 +448,7 @@ class HarmonicFit:
     def significant(self, alpha: float = 1e-3) -> np.ndarray:
         """Harmonics whose amplitude is detectably nonzero (``|C_k|^2 / var_k`` against chi^2_2)."""
         stat = np.abs(self.coef) ** 2 / self.var
-        return self.ks[stat > 2 * stats.f.ppf(1 - alpha, 2, self.dof if np.isfinite(self.dof) else 1e9)]
+        return self.ks[stat > 2 * special.fdtri(2, self.dof if np.isfinite(self.dof) else 1e9, 1 - alpha)]
 
     def to_dict(self) -> dict:
         return {"omega": self.omega, "ks": self.ks.astype(float), "coef_re": self.coef.real,
@@ -531,7 +531,7 @@ def fit_harmonics(y, dt: float, omega: float, k_max: int, first_period: int = 0,
         ref = theta_p[late].mean(axis=0)
         while True:
             stat = float(np.sum((theta_p[start] - ref) ** 2 / (vfull * (1 + 1 / late.size)))) / m
-            steady_p = float(stats.f.sf(stat, m, max(df_l * 2, 1)))
+            steady_p = float(special.fdtrc(m, max(df_l * 2, 1), stat))
             if steady_p >= steady_alpha or P - (start + 1) < max(min_periods, late.size):
                 break
             start += 1
@@ -559,7 +559,7 @@ def fit_harmonics(y, dt: float, omega: float, k_max: int, first_period: int = 0,
         dfk = 2 * dfb
         # white hypothesis: var_per / var_white ~ chi2(dfk)/dfk
         ratio = var_per / np.where(var_white > 0, var_white, np.finfo(float).tiny)
-        pv = 2 * np.minimum(stats.chi2.sf(ratio * dfk, dfk), stats.chi2.cdf(ratio * dfk, dfk))
+        pv = 2 * np.minimum(special.chdtrc(dfk, ratio * dfk), special.chdtr(dfk, ratio * dfk))
         white_p = float(min(1.0, pv.min() * k_max))
     else:
         var_per, dc_var_per, dfk = var_white.copy(), dc_var_white, np.inf
@@ -578,7 +578,7 @@ def fit_harmonics(y, dt: float, omega: float, k_max: int, first_period: int = 0,
         vfull = np.concatenate([[dc_var], var, var]) * Pu * (1 / h + 1 / (Pu - h))
         vfull = np.where(vfull > 0, vfull, np.finfo(float).tiny)      # a noise-free signal
         stat = float(np.sum((t1 - t2) ** 2 / vfull)) / m
-        periodicity_p = float(stats.f.sf(stat, m, dof if np.isfinite(dof) else 1e9))
+        periodicity_p = float(special.fdtrc(m, dof if np.isfinite(dof) else 1e9, stat))
 
     return HarmonicFit(float(omega), np.arange(1, k_max + 1), _complex(theta, k_max), np.asarray(var),
                        float(theta[0]), float(dc_var), model, float(dof), float(np.sqrt(sigma2)), int(start),

@@ -35,7 +35,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import optimize, special
 
 from hwid import HwidError
 from hwid.identify.joint_fit import numeric_jacobian
@@ -221,7 +221,7 @@ class HistoryFit:
         r = prob.full_residual(full)
         chi2 = float(r @ r)
         dof = max(prob.n - full.size, 1)
-        p = float(stats.chi2.sf(chi2, dof))
+        p = float(special.chdtrc(dof, chi2))
         misfit = p < 0.01
         jac = numeric_jacobian(prob.full_residual, full)
         norms = np.sqrt(np.sum(jac * jac, axis=0))
@@ -233,7 +233,7 @@ class HistoryFit:
         if misfit:
             warns.append(f"misfit: chi2 = {chi2:.4g} on {dof} dof (p = {p:.2g}); the model does not reach the "
                          f"levels' own noise, intervals widened by sqrt(chi2/dof) = {np.sqrt(chi2 / dof):.3g}")
-        z = stats.norm.ppf(0.975)
+        z = special.ndtri(0.975)
         e_sd, e_gap = np.exp(theta[1]), np.exp(theta[2])
         # the reported quantities and their gradients in (d_plus, ln S^d, ln(d_plus - d_minus))
         quantities = {"d_plus": (theta[0], [1, 0, 0]), "slope_down": (e_sd, [0, e_sd, 0]),

@@ -9,7 +9,7 @@ import math
 from typing import Optional
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 from hwid.identify.lm import lm
 from hwid.identify.stage1_model import LevelData, internal_levels, joint_chi2, joint_model, predict_levels
@@ -124,4 +124,4 @@ def overdispersion(cands, n: int) -> Optional[float]:
     if not ratios:
         return None
     r, dof = min(ratios)
-    return float(r) if stats.chi2.sf(r * dof, dof) < 1e-3 else None
+    return float(r) if special.chdtrc(dof, r * dof) < 1e-3 else None

@@ -32,7 +32,7 @@ from typing import Optional
 
 import numpy as np
 from numba import njit
-from scipy import stats
+from scipy import special
 
 from hwid import HwidError
 from hwid.identify.crlb import crlb
@@ -117,7 +117,7 @@ class LinearEstimator:
     # -- helpers
     def _quantile(self, dof: float) -> float:
         a = 0.5 + self.confidence / 2
-        return float(stats.norm.ppf(a) if not np.isfinite(dof) else stats.t.ppf(a, dof))
+        return float(special.ndtri(a) if not np.isfinite(dof) else special.stdtrit(dof, a))
 
     def _input_correction(self, record, sine, nonlinear, hf: HarmonicFit, k_dist: int):
         """``kappa`` (fundamental of ``F_hat[u]`` over ``U``, times the hold), the distortion (rms of the

@@ -60,7 +60,7 @@ from pathlib import Path
 from typing import Any, Optional
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 from hwid import HwidError
 from hwid.identify.closed_form import Route, TooFewLevels, flat_run, paper_route, route_with_paths, weighted_polyfit
@@ -307,7 +307,7 @@ class NonlinearEstimator:
                     continue
                 fits = [nls_fit(kind, r.theta, data) for r in routes[:4]]
                 dof_p = n - (p + 3)
-                if dof_p > 0 and min(f[1] for f in fits) > stats.chi2.isf(1e-3, dof_p):
+                if dof_p > 0 and min(f[1] for f in fits) > special.chdtri(dof_p, 1e-3):
                     if kind not in grids:
                         grids[kind] = grid_V(kind, data)
                     fits += [nls_fit(kind, th, data) for th in grid_starts(kind, p, data, grids[kind])]
@@ -388,7 +388,7 @@ class NonlinearEstimator:
         else:
             cov = self._paper_cov(kind, p, data, best.j_a, best.j_d, best.route.a, best.route.b)
         chi2 = joint_chi2(kind, theta, data)
-        gof_p = float(stats.chi2.sf(chi2, dof)) if dof > 0 else float("nan")
+        gof_p = float(special.chdtrc(dof, chi2)) if dof > 0 else float("nan")
         if self.method == "nls" and dof > 0 and gof_p < 1e-3:
             warns.append(f"the model does not fit the staircase data within their standard errors (chi2 = {chi2:.4g} "
                          f"for {dof} dof, p = {gof_p:.1g}): h may not be a polynomial of degree <= {p} on this range, "
@@ -442,7 +442,7 @@ class NonlinearEstimator:
             p = last.p + 1
             dof_last = n - (last.p + 3)
             if p > self.max_degree or n - (p + 3) < 2 or not np.isfinite(last.chi2) \
-                    or last.chi2 <= stats.chi2.isf(1e-3, dof_last):
+                    or last.chi2 <= special.chdtri(dof_last, 1e-3):
                 return out
             if kind not in grids:
                 grids[kind] = grid_V(kind, data)
@@ -454,7 +454,7 @@ class NonlinearEstimator:
             # the misfit itself (chi2 / dof), not the noise: under a misfit BIC takes any small drop
             dof = n - (p + 3)
             if not (np.isfinite(chi2) and chi2 < last.chi2
-                    and stats.f.sf((last.chi2 - chi2) / max(chi2 / dof, 1e-300), 1, dof) < self.alpha):
+                    and special.fdtrc(1, dof, (last.chi2 - chi2) / max(chi2 / dof, 1e-300)) < self.alpha):
                 return out
             last = _Candidate(kind, p, theta, chi2, chi2 + (p + 3) * math.log(n), last.route, amb, last.j_a, last.j_d)
             out.append(last)
@@ -480,7 +480,7 @@ class NonlinearEstimator:
             w = 1 / s ** 2
             m = np.sum(w * x) / np.sum(w)
             q = float(np.sum(w * (x - m) ** 2))
-            pv = float(stats.chi2.sf(q, j_a - 1))
+            pv = float(special.chdtrc(j_a - 1, q))
             parts.append(f"X_1..X_{j_a} of the ascending staircase lie on one horizontal path (homogeneity "
                          f"chi2 = {q:.3g} on {j_a - 1} dof, p = {pv:.2g}), which only a Backlash produces")
         else:
@@ -501,7 +501,7 @@ class NonlinearEstimator:
 
     def _result(self, kind, p, theta, cov, data, st: SteadyLevels, flat_up, flat_down, V, evidence, warns, fit):
         df = max(int(st.df), 1)
-        tq = float(stats.t.ppf(0.5 + self.confidence / 2, df))
+        tq = float(special.stdtrit(df, 0.5 + self.confidence / 2))
         sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
         names = tuple(f"c{i}" for i in range(1, p + 1)) + ("d_plus", "slope_down", "d_minus")
         iv = {nm: (float(theta[i] - tq * sd[i]), float(theta[i] + tq * sd[i])) for i, nm in enumerate(names)}

@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 from hwid import HwidError
 from hwid.identify.lm import lm
@@ -55,7 +55,7 @@ class RationalFit:
     @property
     def poles_ci(self) -> np.ndarray:
         """``[[Re lo, Re hi, Im lo, Im hi], ...]`` at ``confidence``."""
-        q = stats.norm.ppf(0.5 + self.confidence / 2)
+        q = special.ndtri(0.5 + self.confidence / 2)
         se = np.sqrt(np.maximum(np.stack([self.poles_cov[:, 0, 0], self.poles_cov[:, 1, 1]], 1), 0))
         return np.column_stack([self.poles.real - q * se[:, 0], self.poles.real + q * se[:, 0],
                                 self.poles.imag - q * se[:, 1], self.poles.imag + q * se[:, 1]])
@@ -270,7 +270,7 @@ def fit_rational(omega, G, cov, gain=None, phase=None, max_order: int = 4, fit_d
     num = np.concatenate([[1.0], b])[::-1] / Ap[-1]
     warns = []
     dof = N2 - (n + m + (1 if fit_delay else 0))
-    p_fit = float(stats.chi2.sf(chi2, dof))
+    p_fit = float(special.chdtrc(dof, chi2))
     if p_fit < 1e-3:
         warns.append(f"parametric fit: the best model (n={n}, m={m}) leaves chi2 = {chi2:.3g} on {dof} dof "
                      f"(p = {p_fit:.2g}); it does not explain G_hat within its uncertainties")

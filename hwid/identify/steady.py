@@ -35,7 +35,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import linalg, stats
+from scipy import linalg
 
 
 @dataclass(frozen=True)
@@ -204,6 +204,7 @@ def steady_levels(y_segments: list[np.ndarray], offsets=None, pool: bool = True,
     lrv = max(float(np.mean(lrv_j)), ar_long_run_variance(kept), floor)
     use_pool = pool and len(segs) > 1
     if use_pool and lrv > floor and np.all(lrv_j > 0):
+        from scipy import stats   # here: scipy.stats costs half a second at start-up
         p = stats.bartlett(*[bm * np.sqrt(b) for bm, b in bms]).pvalue
         if p < 1e-3:
             use_pool = False

@@ -29,7 +29,7 @@ from typing import Sequence
 
 import numpy as np
 from numba import njit
-from scipy import optimize, stats
+from scipy import optimize, special
 
 from hwid import HwidError
 from hwid.blocks.slew import slewed
@@ -455,7 +455,7 @@ class WholeModelFit:
             warnings.append(f"the residual is correlated over {tau:.3g} samples (a misfit, or coloured noise): "
                             f"intervals widened by sqrt({tau:.3g}); the fit does not reach white noise")
         cov = cov * max(tau, 1.0)
-        z = stats.norm.ppf(0.975)
+        z = special.ndtri(0.975)
         # intervals of the reported quantities by the delta method on the outer parameters
         grads = {"d_plus": _grad(lambda t: t[0], full), "slope_down": _grad(lambda t: np.exp(t[1]), full),
                  "d_minus": _grad(lambda t: t[0] - np.exp(t[2]), full)}
