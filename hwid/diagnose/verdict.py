@@ -119,17 +119,19 @@ def refloor(cands: list[Candidate], gap_before: float, sigma: float,
 
 
 def eligible(c: Candidate, drift_plausible: bool, threshold: float = 0.5, leaves_noise=None,
-             max_left: float | None = None) -> bool:
+             max_left: float | None = None, partial: tuple[float, float] | None = None) -> bool:
     """Whether ``c`` could be the verdict: it pays for its parameters (a positive score), leaves at
     most ``max_left`` (an RMS gap; ``None``: no bound) and either explains at least ``threshold`` of
-    the excess or leaves a gap the gap test takes for noise (``leaves_noise(gap_after)``, the same
-    test that found the gap; ``None``: not asked); ``drift`` only when plausible.
+    the excess, or leaves a gap the gap test takes for noise (``leaves_noise(gap_after)``, the same
+    test that found the gap; ``None``: not asked), or, with ``partial = (share, left)``, explains at
+    least ``share`` and leaves at most ``left`` (an RMS gap); ``drift`` only when plausible.
 
     The second clause is for effects seen near the floor: where the gap is a fifth above the noise,
     what an identified model itself leaves (its identification error, a floor measured a few per cent
     low) can be as large as the effect's excess, and an effect that takes the gap down to where the
     test no longer tells it from noise has explained all that the records can show, whatever share
-    of the excess that is."""
+    of the excess that is. The third is the same for an identified model a little further from the
+    floor (:data:`hwid.diagnose.run.ID_PARTIAL`)."""
     if c.effect == "drift" and not drift_plausible:
         return False
     if not c.score > 0:
@@ -137,11 +139,13 @@ def eligible(c: Candidate, drift_plausible: bool, threshold: float = 0.5, leaves
     if max_left is not None and not c.gap_after <= max_left:
         return False
     return bool(c.explained_fraction >= threshold
-                or (leaves_noise is not None and np.isfinite(c.gap_after) and leaves_noise(c.gap_after)))
+                or (leaves_noise is not None and np.isfinite(c.gap_after) and leaves_noise(c.gap_after))
+                or (partial is not None and c.explained_fraction >= partial[0] and c.gap_after <= partial[1]))
 
 
 def verdict(cands: list[Candidate], significant: bool, drift_plausible: bool,
-            threshold: float = 0.5, leaves_noise=None, max_left: float | None = None) -> Candidate | None | str:
+            threshold: float = 0.5, leaves_noise=None, max_left: float | None = None,
+            partial: tuple[float, float] | None = None) -> Candidate | None | str:
     """``"none"`` when the gap is noise; the first ranked candidate if it could be the verdict
     (:func:`eligible`: it explains at least ``threshold`` of the excess, or leaves only noise, pays
     for its parameters and leaves at most ``max_left``); else ``"unexplained"``.
@@ -153,7 +157,7 @@ def verdict(cands: list[Candidate], significant: bool, drift_plausible: bool,
     for c in cands:
         if c.effect == "drift" and not drift_plausible:
             continue
-        return c if eligible(c, drift_plausible, threshold, leaves_noise, max_left) else "unexplained"
+        return c if eligible(c, drift_plausible, threshold, leaves_noise, max_left, partial) else "unexplained"
     return "unexplained"
 
 
@@ -183,14 +187,16 @@ def paired_z(a: Candidate, b: Candidate, y_val, m_val, sigma: float, kappa: floa
 
 
 def indistinguishable(cands: list[Candidate], y_val, m_val, sigma: float, kappa: float, drift_plausible: bool,
-                      threshold: float = 0.5, leaves_noise=None, max_left: float | None = None) -> list[dict]:
+                      threshold: float = 0.5, leaves_noise=None, max_left: float | None = None,
+                      partial: tuple[float, float] | None = None) -> list[dict]:
     """Groups of catalogue effects that fit these records equally well within the noise.
 
     Among the candidates that could be a verdict (:func:`eligible`), in ranked order: each group is
     the best remaining one and every other whose squared errors on the validation data are not
     :data:`SEPARATE_Z` standard deviations apart from it (:func:`paired_z`). Only groups of two or
     more are returned, each as ``{"effects", "gap_after", "z"}`` (``z`` against the group's first)."""
-    able = [c for c in cands if eligible(c, drift_plausible, threshold, leaves_noise, max_left) and c.predictions]
+    able = [c for c in cands if eligible(c, drift_plausible, threshold, leaves_noise, max_left, partial)
+            and c.predictions]
     groups = []
     while able:
         head, rest = able[0], able[1:]
