@@ -10,6 +10,7 @@ sample (dt = 0.04 s): hence |tau_hat - 1.5| < 2 dt.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -319,6 +320,31 @@ def test_an_identified_model_names_an_effect_that_explains_a_quarter_and_leaves_
     small = cand("input_deadzone", 1.5 * sigma, 0.2, 901.5)
     assert verdict([small, lag], True, False, partial=partial) == "unexplained"
     assert verdict([dz, lag], False, False, partial=partial) == "none"
+
+
+def test_the_second_test_names_an_effect_held_near_the_floor_that_explains_a_quarter():
+    """A development rig's delay of 0.36 s on the third-order base, identified: the identified
+    model leaves 1.036x the floor, the delay takes it to 1.010x (0.46 of the excess, likelihood
+    ratio 557 on validation), and the verdict was ``none`` for explaining less than half. A plain
+    rig's best candidate (a bend, 0.12, score -39) stays below the test."""
+    from hwid.diagnose.gap import NoiseFloor
+    from hwid.diagnose.run import second_test
+    from hwid.diagnose.verdict import Candidate, explained_fraction
+    nf = NoiseFloor(sigma=0.0100832, kappa=1.0, n=4000, slow_rms=0.0, slow_z=0.0, surrogate=np.zeros(1))
+    ref = 0.0104422
+
+    def cand(name, ga, score, k):
+        return Candidate(name, "linear", {}, ga, ga, explained_fraction(ref, ga, nf.sigma), score, k)
+    delay, mode = cand("time_delay", 0.0101886, 547.84, 1.0), cand("resonance", 0.0101898, 535.84, 2.0)
+    assert delay.explained_fraction == pytest.approx(0.46, abs=0.01)
+    _, by = second_test([delay, mode], ref, nf, False, 11332.0)
+    assert by["effect"] == "time_delay" and by["likelihood_ratio"] == pytest.approx(557.2, abs=0.2)
+    assert by["significant"]
+    plain_ref = 0.0099905
+    bend = Candidate("curved_borders", "input", {}, 0.0099884, 0.0099884,
+                     explained_fraction(plain_ref, 0.0099884, 0.0099813), -39.25, 5.0)
+    _, by = second_test([bend], plain_ref, dataclasses.replace(nf, sigma=0.0099813), False, 28814.0)
+    assert by["likelihood_ratio"] == pytest.approx(12.1, abs=0.1) and not by["significant"]
 
 
 def test_drift_is_additive_against_a_wandering_gain():
