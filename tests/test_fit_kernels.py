@@ -1,13 +1,12 @@
 """The diagnosis's fast paths give what the general-purpose code they stand in for gives: the
-first-order lag on a whole design matrix, h's Legendre columns, the curved borders' cached basis,
-and the effect fits handed to the workers longest first."""
+first-order lag on a whole design matrix, the curved borders' cached basis, and the effect fits
+handed to the workers longest first."""
 import numpy as np
 import pytest
 
 from hwid.blocks.linear import LinearBlock
 from hwid.diagnose.effects import CurvedBorders
 from hwid.diagnose.modelsim import first_order
-from hwid.diagnose.rank import legendre_columns
 from hwid.threads import forked_map
 
 
@@ -19,13 +18,6 @@ def test_the_lag_on_a_matrix_is_the_exact_sampled_lag_of_each_column(tau):
     np.testing.assert_allclose(first_order(x, tau, dt), exact, rtol=0, atol=1e-11 * np.abs(x).max())
     np.testing.assert_allclose(first_order(x[:, 2], tau, dt), exact[:, 2], rtol=0, atol=1e-11 * np.abs(x).max())
     assert first_order(x[:0], tau, dt).shape == (0, 4)
-
-
-def test_legendre_columns_are_numpys_legendre_vandermonde():
-    x = np.random.default_rng(4).uniform(-1.3, 1.3, 500)
-    for degree in range(0, 7):
-        np.testing.assert_allclose(legendre_columns(x, degree), np.polynomial.legendre.legvander(x, degree),
-                                   rtol=0, atol=1e-13)
 
 
 def test_the_curved_borders_basis_is_the_bend_continued_along_its_tangent():

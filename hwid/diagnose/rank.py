@@ -155,7 +155,7 @@ class EffectFitter:
 
     # ----------------------------------------------------------------------- h re-estimated jointly
     def _basis(self, w) -> np.ndarray:
-        return legendre_columns((np.asarray(w, float) - self._w_c) / self._w_r, self.degree)
+        return np.polynomial.legendre.legvander((np.asarray(w, float) - self._w_c) / self._w_r, self.degree)
 
     def _designs(self, eff, theta, which) -> list[np.ndarray]:
         if self.refit_g:
@@ -640,20 +640,6 @@ class EffectFitter:
         F, G = self.input_nl(m), self.linear(m)
         return {"input_nonlinearity": F.to_dict(), "linear": {"num": list(G.num), "den": list(G.den),
                                                               "delay": G.delay}}
-
-
-def legendre_columns(x, degree: int) -> np.ndarray:
-    """``P_0(x) ... P_degree(x)`` as columns (``numpy.polynomial.legendre.legvander``), by Bonnet's
-    recursion written out: an effect's fit builds h's design hundreds of times, and legvander's
-    general-purpose set-up costs as much as the recursion itself."""
-    x = np.asarray(x, float)
-    V = np.empty((degree + 1, x.size))
-    V[0] = 1.0
-    if degree > 0:
-        V[1] = x
-        for n in range(1, degree):
-            V[n + 1] = ((2 * n + 1) * x * V[n] - n * V[n - 1]) / (n + 1)
-    return V.T
 
 
 def _lsq(A, b) -> np.ndarray:
