@@ -298,12 +298,13 @@ def test_with_a_given_model_an_effect_that_leaves_twice_the_floor_is_not_named()
     assert not eligible(bend, False, max_left=bound) and eligible(bend, False)
 
 
-def test_an_identified_model_names_an_effect_that_explains_a_quarter_and_leaves_twice_the_floor():
-    """A development lab log with an input dead zone of 0.13, identified from the CSV: the dead
-    zone explained 0.34 of the excess and left 1.60x the floor (its rivals 0.01 and less, 2.1x),
-    and was ``unexplained`` for explaining less than half. With an identified model (its own error
-    part of the excess) it is named; a quarter that leaves more than twice the floor is not, nor
-    is it with a given model, where the rule does not apply."""
+def test_an_identified_model_names_an_effect_that_explains_a_quarter_and_leaves_little():
+    """A development lab log with a clipping sensor, identified from the CSV: the clip explained
+    0.48 of the excess and left 1.36x the floor (its rivals 0.01 and less), and was
+    ``unexplained`` for explaining less than half. With an identified model (its own error part of
+    the excess) it is named. The banded friction damper's best candidate, a bend explaining 0.34
+    and leaving 1.69x, is not (a friction is not a bend), nor is a quarter with a given model,
+    where the rule does not apply."""
     from hwid.diagnose.run import ID_PARTIAL
     from hwid.diagnose.verdict import Candidate, eligible, verdict
     sigma = 0.018987
@@ -311,11 +312,11 @@ def test_an_identified_model_names_an_effect_that_explains_a_quarter_and_leaves_
 
     def cand(name, ga, share, score):
         return Candidate(name, "input", {}, ga, ga, share, score, 2.0)
-    dz, lag = cand("input_deadzone", 0.030348, 0.345, 901.5), cand("sensor_lag", 0.040526, 0.009, 7.3)
+    dz, lag = cand("sensor_saturation", 1.36 * sigma, 0.48, 901.5), cand("sensor_lag", 0.040526, 0.009, 7.3)
     assert verdict([dz, lag], True, False) == "unexplained"
     assert verdict([dz, lag], True, False, partial=partial) is dz
     assert not eligible(lag, False, partial=partial)
-    far = cand("input_deadzone", 2.3 * sigma, 0.45, 901.5)
+    far = cand("curved_borders", 1.69 * sigma, 0.34, 216.0)
     assert verdict([far, lag], True, False, partial=partial) == "unexplained"
     small = cand("input_deadzone", 1.5 * sigma, 0.2, 901.5)
     assert verdict([small, lag], True, False, partial=partial) == "unexplained"

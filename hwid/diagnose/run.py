@@ -49,11 +49,13 @@ GIVEN_MAX_LEFT = 2.0
 #: For an identified model, an effect is also named when it explains at least this share of the
 #: excess and leaves at most this many times the noise floor (RMS): the model's own error is part
 #: of the excess and no effect removes it, so a true effect may explain less than half of a gap
-#: that is small to begin with. Re-scored on the stored diagnoses of the labelled development rigs,
-#: 9 of 560 identified ones gained a right name (each left 1.06-1.60x, explaining 0.26-0.49) and no
-#: correct `unexplained` or `none` was lost; with a given model the rule would have named a
-#: wandering gain and gained nothing.
-ID_PARTIAL = (0.25, 2.0)
+#: that is small to begin with. What it leaves is held to the bar a correct verdict is held to
+#: (1.5x): at 2x, the banded friction damper's log (identified) was called `curved_borders`
+#: (0.34 explained, 1.69x left), a friction named as a bend. Re-scored on the stored diagnoses of
+#: the labelled development rigs, 7 of 560 identified ones gained a right name (each left
+#: 1.06-1.36x, explaining 0.30-0.49) and no correct `unexplained` or `none` was lost; with a given
+#: model the rule would have named a wandering gain and gained nothing.
+ID_PARTIAL = (0.25, 1.5)
 
 #: The least share of the excess the drift smoother must take out for a drift told from a log's
 #: residual (:func:`drift_from_residual`); the drifts of the development logs: 0.81-1.00.
