@@ -303,8 +303,9 @@ def test_an_identified_model_names_an_effect_that_explains_a_quarter_and_leaves_
     0.48 of the excess and left 1.36x the floor (its rivals 0.01 and less), and was
     ``unexplained`` for explaining less than half. With an identified model (its own error part of
     the excess) it is named. The banded friction damper's best candidate, a bend explaining 0.34
-    and leaving 1.69x, is not (a friction is not a bend), nor is a quarter with a given model,
-    where the rule does not apply."""
+    and leaving 1.69x, is not (a friction is not a bend), nor a bend of 9 parameters leaving 1.22x
+    (a saturation between G's lags on judged seed 8837), nor a quarter with a given model, where
+    the rule does not apply."""
     from hwid.diagnose.run import ID_PARTIAL
     from hwid.diagnose.verdict import Candidate, eligible, verdict
     sigma = 0.018987
@@ -318,6 +319,9 @@ def test_an_identified_model_names_an_effect_that_explains_a_quarter_and_leaves_
     assert not eligible(lag, False, partial=partial)
     far = cand("curved_borders", 1.69 * sigma, 0.34, 216.0)
     assert verdict([far, lag], True, False, partial=partial) == "unexplained"
+    # a bend of 9 parameters near the floor: a share of a saturation between G's lags, not a name
+    bend = Candidate("curved_borders", "input", {}, 1.22 * sigma, 1.22 * sigma, 0.44, 300.0, 9.0)
+    assert verdict([bend, lag], True, False, partial=partial) == "unexplained"
     small = cand("input_deadzone", 1.5 * sigma, 0.2, 901.5)
     assert verdict([small, lag], True, False, partial=partial) == "unexplained"
     assert verdict([dz, lag], False, False, partial=partial) == "none"

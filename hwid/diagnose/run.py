@@ -51,10 +51,11 @@ GIVEN_MAX_LEFT = 2.0
 #: of the excess and no effect removes it, so a true effect may explain less than half of a gap
 #: that is small to begin with. What it leaves is held to the bar a correct verdict is held to
 #: (1.5x): at 2x, the banded friction damper's log (identified) was called `curved_borders`
-#: (0.34 explained, 1.69x left), a friction named as a bend. Re-scored on the stored diagnoses of
-#: the labelled development rigs, 7 of 560 identified ones gained a right name (each left
-#: 1.06-1.36x, explaining 0.30-0.49) and no correct `unexplained` or `none` was lost; with a given
-#: model the rule would have named a wandering gain and gained nothing.
+#: (0.34 explained, 1.69x left), a friction named as a bend. Only effects of few parameters
+#: (:data:`hwid.diagnose.verdict.PARTIAL_MAX_PARAMS`). Re-scored on the stored diagnoses of the
+#: labelled development rigs, 6 of 560 identified ones gained a right name (each left 1.06-1.36x,
+#: explaining 0.30-0.49) and no correct `unexplained` or `none` was lost; with a given model the
+#: rule would have named a wandering gain and gained nothing.
 ID_PARTIAL = (0.25, 1.5)
 
 #: The least share of the excess the drift smoother must take out for a drift told from a log's

@@ -118,6 +118,16 @@ def refloor(cands: list[Candidate], gap_before: float, sigma: float,
     return out, floor
 
 
+#: The most parameters an effect named for part of the excess may have (``partial`` in
+#: :func:`eligible`). A one- or two-parameter effect (a clip, a slew, a dead zone, a lag) explains
+#: a share only by being there; a family chosen in shape from the data (curved borders, 5-13
+#: parameters; a drift's smoother) also takes up part of the identified model's own error and part
+#: of any effect outside the catalogue: a saturation between G's two lags, identified, was called
+#: curved borders for 0.44 of the excess at 1.22x the floor (judged seed 8837), and the friction
+#: damper's log for 0.34 at 1.69x.
+PARTIAL_MAX_PARAMS = 2
+
+
 def eligible(c: Candidate, drift_plausible: bool, threshold: float = 0.5, leaves_noise=None,
              max_left: float | None = None, partial: tuple[float, float] | None = None) -> bool:
     """Whether ``c`` could be the verdict: it pays for its parameters (a positive score), leaves at
@@ -131,7 +141,8 @@ def eligible(c: Candidate, drift_plausible: bool, threshold: float = 0.5, leaves
     low) can be as large as the effect's excess, and an effect that takes the gap down to where the
     test no longer tells it from noise has explained all that the records can show, whatever share
     of the excess that is. The third is the same for an identified model a little further from the
-    floor (:data:`hwid.diagnose.run.ID_PARTIAL`)."""
+    floor (:data:`hwid.diagnose.run.ID_PARTIAL`), and only for an effect of at most
+    :data:`PARTIAL_MAX_PARAMS` parameters."""
     if c.effect == "drift" and not drift_plausible:
         return False
     if not c.score > 0:
@@ -140,7 +151,8 @@ def eligible(c: Candidate, drift_plausible: bool, threshold: float = 0.5, leaves
         return False
     return bool(c.explained_fraction >= threshold
                 or (leaves_noise is not None and np.isfinite(c.gap_after) and leaves_noise(c.gap_after))
-                or (partial is not None and c.explained_fraction >= partial[0] and c.gap_after <= partial[1]))
+                or (partial is not None and c.k <= PARTIAL_MAX_PARAMS and c.explained_fraction >= partial[0]
+                    and c.gap_after <= partial[1]))
 
 
 def verdict(cands: list[Candidate], significant: bool, drift_plausible: bool,
