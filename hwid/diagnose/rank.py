@@ -666,9 +666,8 @@ def fit_all(fitter: EffectFitter, effects: dict[str, effect_models.Effect], echo
     longest first (:func:`hwid.threads.forked_map`, :data:`LONGEST_FIRST`), which halves a
     diagnosis's analysis on the 2-core machine."""
     names = list(effects)
-    n = len(LONGEST_FIRST)
     out = forked_map(lambda name: fitter.fit(effects[name]), names,
-                     cost=lambda name: n - LONGEST_FIRST.index(name) if name in LONGEST_FIRST else n + 1)
+                     cost=lambda name: -LONGEST_FIRST.index(name) if name in LONGEST_FIRST else 1)
     if echo:
         for name, c in zip(names, out):
             echo(f"  {name:18s} explained {c.explained_fraction:5.2f}  gap after {c.gap_after:.4g}  "

@@ -17,7 +17,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from hwid.identify.whole import STRUCTURES, WholeModelFit, _best_states, _descend, _Problem, _row, border_grid
+from hwid.identify.whole import (STRUCTURES, WholeModelFit, _best_states, _descend, _extent, _Problem, _row,
+                                 border_grid)
 
 #: the limits the fit starts from: this many places of each, from the input's centre to its end,
 #: the last beyond the end (no limit on that side)
@@ -94,8 +95,7 @@ def _pressed_inward(prob: _Problem, lo: float, hi: float) -> bool:
     standing in for something else (a 4 s sensor lag on the paper's plant was fitted with an
     actuator that never passed -0.1 of a range -1.4 to 1.2), not an actuator that stops short."""
     (_, lo_in), (hi_in, _) = prob.clip_bounds()
-    u = np.concatenate([r.u for r in prob.records])
-    tol = 0.02 * float(np.ptp(u))
+    tol = 0.02 * _extent(prob.records)[2]
     return bool(lo >= lo_in - tol or hi <= hi_in + tol)
 
 
