@@ -638,3 +638,28 @@ def test_equal_numbers_of_poles_and_zeros_below_half_the_band_act_as_a_gain_and_
     num_far = np.real(np.poly([z / 10 for z in slow_z]))
     n, d, pairs = cancel_slow_pairs(num_far, den, (0.02, 0.2))
     assert pairs == [] and len(d) == 5
+
+
+def test_a_deterministic_effect_at_the_floor_survives_a_model_that_does_not_generalise():
+    """A development lab log with an input clip, identified from its fit part: the model missed the
+    validation part 6.6x as far as its own records (only validation reaches the clip's far side),
+    and input_saturation, fitted on the fit part, left 1.02x the floor there (0.98 of the excess).
+    Out-of-sample evidence: the verdict stands. A drift at the floor does not (its smoother follows
+    the validation output itself), nor a deterministic effect that leaves more than noise."""
+    from hwid.diagnose.gap import NoiseFloor, gap_test
+    from hwid.diagnose.run import repairs_out_of_sample
+    from hwid.diagnose.verdict import Candidate, explained_fraction
+    nf = NoiseFloor(sigma=0.009804, kappa=1.0, n=27450, slow_rms=0.0, slow_z=0.0, surrogate=np.zeros(1))
+    before = 0.08789
+
+    def leaves_noise(g):
+        return not gap_test(g, 27450, nf, min_ratio=1.25).significant
+
+    def cand(name, ga, block="input"):
+        return Candidate(name, block, {}, ga, ga, explained_fraction(before, ga, nf.sigma), 1e4, 2.0)
+    clip = cand("input_saturation", 0.010013)
+    assert clip.explained_fraction == pytest.approx(0.98, abs=0.01)
+    assert repairs_out_of_sample(clip, leaves_noise)
+    assert not repairs_out_of_sample(cand("drift", 0.0097, "noise"), leaves_noise)
+    assert not repairs_out_of_sample(cand("input_saturation", 0.0125), leaves_noise)
+    assert not repairs_out_of_sample("unexplained", leaves_noise)
