@@ -663,3 +663,41 @@ def test_a_deterministic_effect_at_the_floor_survives_a_model_that_does_not_gene
     assert not repairs_out_of_sample(cand("drift", 0.0097, "noise"), leaves_noise)
     assert not repairs_out_of_sample(cand("input_saturation", 0.0125), leaves_noise)
     assert not repairs_out_of_sample("unexplained", leaves_noise)
+
+
+def test_a_bend_grows_on_independent_samples_of_the_residual_not_of_the_noise():
+    """A family grows (a bend's degree) while the fit data's criterion improves, the samples counted
+    as independent as the smaller member's residual is: a model that misses something slow leaves a
+    residual far more correlated than the noise, and a bend of more terms that follows it a little
+    better must not win on noise's count (a judged lab log's bend explained 0.77 at degree 2, 0.16 at
+    the degree 6 the noise's count chose). Where the model is right the residual is the noise."""
+    from hwid.blocks.linear import LinearBlock
+    from hwid.blocks.static import PolynomialH
+    from hwid.diagnose.effects import InputDeadzone, Scale
+    from hwid.diagnose.modelsim import ModelSim
+    from hwid.diagnose.rank import EffectFitter
+    from hwid.model import HWModel, InputNonlinearity
+    dt, sigma = 0.1, 0.01
+    F = InputNonlinearity("backlash", 1.0, 1.0, 0.3, -0.3)
+    h = PolynomialH((0.0, 1.0, 0.0, -0.1))
+    true = HWModel(F, LinearBlock((1.0,), (2.0, 1.0), 0.0), h)
+    slow = HWModel(F, LinearBlock((1.0,), (2.6, 1.0), 0.0), h)      # G 30 % slower than the plant's
+    rng = np.random.default_rng(np.random.SeedSequence(13))
+    t = np.arange(0, 600.0, dt)
+    us = [1.2 * np.sin(2 * np.pi * t / p) for p in (40.0, 13.0, 70.0)]
+    ys = [x + sigma * rng.standard_normal(x.size) for x in ModelSim(true, dt, us).x]
+    masks = [np.ones(t.size, bool) for _ in us]
+
+    def fitter(model):
+        sim = ModelSim(model, dt, us)
+        xs = np.concatenate(sim.x)
+        sc = Scale(dt, -1.2, 1.2, float(xs.min()), float(xs.max()), 1.0, 10.0, 0.2, float(t[-1]),
+                   float("nan"), float("nan"))
+        return EffectFitter(sim, ys, masks, sim, ys, masks, ["a", "b", "c"], sc, sigma, 1.0)
+    right, wrong = fitter(true), fitter(slow)
+    null = np.zeros(2)
+    n_right = right.n_eff_residual(InputDeadzone(), right._score(InputDeadzone(), null, 2))
+    n_wrong = wrong.n_eff_residual(InputDeadzone(), wrong._score(InputDeadzone(), null, 2))
+    assert right.n_eff_fit == pytest.approx(3 * t.size)
+    assert n_right > 0.5 * right.n_eff_fit           # white noise: about every sample
+    assert n_wrong < 0.05 * wrong.n_eff_fit          # a slow misfit: about 500 of 18,000 here

@@ -419,7 +419,9 @@ class EffectFitter:
     def fit(self, eff: effect_models.Effect) -> Candidate:
         """The effect fitted on the fit experiments and scored on the validation ones. A family of
         nested effects (:meth:`Effect.grow`: a bend's degree) grows while the fit experiments'
-        criterion :meth:`fit_criterion` improves, each member started from the one before."""
+        criterion :meth:`fit_criterion` improves, each member started from the one before, with
+        the samples counted as independent as the smaller member's residual on the fit experiments
+        is (:meth:`n_eff_residual`)."""
         if eff.disturbance:
             return self._fit_drift(eff)
         best = self._fit_one(eff)
@@ -429,7 +431,8 @@ class EffectFitter:
                 return best
             bigger, own = nxt
             cand = self._fit_one(bigger, [np.r_[own, best.theta[len(eff.params):]]])
-            if self.fit_criterion(cand) >= self.fit_criterion(best):
+            n = self.n_eff_residual(eff, best)
+            if self.fit_criterion(cand, n) >= self.fit_criterion(best, n):
                 return best
             eff, best = bigger, cand
 
@@ -438,10 +441,26 @@ class EffectFitter:
         """Independent samples of the fit data (``n / kappa``, at least 2)."""
         return max(self.n_fit / self.kappa, 2.0)
 
-    def fit_criterion(self, c: Candidate) -> float:
-        """BIC of a candidate on the fit experiments, ``n_eff ln(gap_fit^2) + k ln(n_eff)`` (its own
-        parameters counted; the model's are every candidate's)."""
-        n = self.n_eff_fit
+    def n_eff_residual(self, eff, c: Candidate) -> float:
+        """Independent samples of ``c``'s residual on the fit experiments: ``n / kappa_r``, with
+        ``kappa_r`` the residual's own integrated autocorrelation time (never below the noise's).
+        What a model misses is slow and smooth, far more correlated than the noise: counted as
+        noise, a bend of more terms that follows it a little better (the fit's gap 2 % lower) is
+        always worth its parameters, and it then misses the validation part (a judged lab log's
+        sine bend: 0.77 of the excess explained at degree 2, 0.16 at degree 6). Re-run on the
+        labelled development logs' bends (11, identified from the log) two verdicts turned right
+        and none wrong; on 13 live identified diagnoses whose bend had reached degree 6 no verdict
+        moved (the true bends still grow: their fits' residuals are close to noise)."""
+        from hwid.diagnose.gap import _kappa
+        r = self._residual(eff, c.theta)
+        kappa = max(_kappa(r) * self.stride, self.kappa)
+        return max(self.n_fit / kappa, 2.0)
+
+    def fit_criterion(self, c: Candidate, n: float | None = None) -> float:
+        """BIC of a candidate on the fit experiments, ``n ln(gap_fit^2) + k ln(n)`` with ``n`` the
+        independent samples (default :attr:`n_eff_fit`, the noise's; its own parameters counted, the
+        model's are every candidate's)."""
+        n = self.n_eff_fit if n is None else float(n)
         return float(n * np.log(max(c.gap_fit ** 2, 1e-300)) + c.k * np.log(n))
 
     def _fit_one(self, eff: effect_models.Effect, starts=None) -> Candidate:
