@@ -644,8 +644,9 @@ def test_a_deterministic_effect_at_the_floor_survives_a_model_that_does_not_gene
     """A development lab log with an input clip, identified from its fit part: the model missed the
     validation part 6.6x as far as its own records (only validation reaches the clip's far side),
     and input_saturation, fitted on the fit part, left 1.02x the floor there (0.98 of the excess).
-    Out-of-sample evidence: the verdict stands. A drift at the floor does not (its smoother follows
-    the validation output itself), nor a deterministic effect that leaves more than noise."""
+    Out-of-sample evidence: the verdict stands. A drift at the floor stands only where the tests on
+    the residual find no structure (its smoother follows the validation output itself, a wandering
+    gain's remainder too); a deterministic effect that leaves more than noise never does."""
     from hwid.diagnose.gap import NoiseFloor, gap_test
     from hwid.diagnose.run import repairs_out_of_sample
     from hwid.diagnose.verdict import Candidate, explained_fraction
@@ -660,7 +661,11 @@ def test_a_deterministic_effect_at_the_floor_survives_a_model_that_does_not_gene
     clip = cand("input_saturation", 0.010013)
     assert clip.explained_fraction == pytest.approx(0.98, abs=0.01)
     assert repairs_out_of_sample(clip, leaves_noise)
-    assert not repairs_out_of_sample(cand("drift", 0.0097, "noise"), leaves_noise)
+    drift = cand("drift", 0.0097, "noise")
+    assert not repairs_out_of_sample(drift, leaves_noise)                     # no residual tests run
+    gain = [{"kind": "varying_gain", "evidence": "", "p_value": 1e-6}]
+    assert not repairs_out_of_sample(drift, leaves_noise, gain)               # a wandering gain's remainder
+    assert repairs_out_of_sample(drift, leaves_noise, [{"kind": "none", "evidence": "", "p_value": 0.3}])
     assert not repairs_out_of_sample(cand("input_saturation", 0.0125), leaves_noise)
     assert not repairs_out_of_sample("unexplained", leaves_noise)
 

@@ -139,21 +139,30 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
     return conclude(cfg, out, json_path, val, floor, additive, sim_model, origin, effects, cost, t_start, echo)
 
 
-def repairs_out_of_sample(verdict, leaves_noise) -> bool:
+def repairs_out_of_sample(verdict, leaves_noise, structure=None) -> bool:
     """Whether a verdict survives an identified model that does not generalise
-    (:data:`GENERALISE_RATIO`): a deterministic effect whose joint fit on the fit part (with F, G
-    and h re-estimated) predicts the validation part to within noise (``leaves_noise(gap_after)``)
-    has shown out of sample what the model lacked: a clip whose far side only the validation part
-    reaches makes a model miss validation far more than its own records. A drift is never credited
-    so: its smoother takes its state from the validation output itself, and follows whatever the
-    model misses slowly (a wandering gain, 0.92 of its excess at 1.08x the floor, on a labelled
-    development log).
+    (:data:`GENERALISE_RATIO`): it must take the validation gap to noise
+    (``leaves_noise(gap_after)``).
+
+    * A deterministic effect, whose joint fit on the fit part (with F, G and h re-estimated)
+      predicts the validation part, has then shown out of sample what the model lacked: a clip
+      whose far side only the validation part reaches makes a model miss validation far more than
+      its own records.
+    * A drift is the one effect that by its nature makes a model identified on one part of a log
+      miss the other. Its smoother takes its state from the validation output itself and follows
+      whatever the model misses slowly, so it is credited only where the tests on the validation
+      residual (``structure``, :mod:`hwid.diagnose.residual_structure`) find nothing a wandering
+      gain or a friction leaves: a wandering gain's drift explained 0.92 of its excess at 1.08x the
+      floor on a labelled development log, with `varying_gain` and `direction_of_motion` found.
 
     On the labelled development logs (ten seeds, identified) the veto had turned an input clip
-    explaining 0.98 at 1.02x the floor into `unexplained`; no outside effect had a deterministic
-    candidate at the floor behind it."""
-    return (isinstance(verdict, Candidate) and verdict.effect != "drift" and np.isfinite(verdict.gap_after)
-            and bool(leaves_noise(verdict.gap_after)))
+    explaining 0.98 at 1.02x the floor, and two drifts at the floor with no structure, into
+    `unexplained`; no outside effect had a deterministic candidate at the floor behind it."""
+    if not (isinstance(verdict, Candidate) and np.isfinite(verdict.gap_after) and leaves_noise(verdict.gap_after)):
+        return False
+    if verdict.effect != "drift":
+        return True
+    return bool(structure) and all(s["kind"] == "none" for s in structure)
 
 
 def drift_additivity(pairs, design, sigma: float) -> dict:
@@ -231,9 +240,13 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
     if why:
         echo(why)
     if id_err is not None and not id_err.get("generalises", True) and verdict != "none":
-        if repairs_out_of_sample(verdict, leaves_noise):
+        structure = (_remainder(val, [val.exps[i] for i in val.val_idx])
+                     if isinstance(verdict, Candidate) and verdict.effect == "drift" else None)
+        if repairs_out_of_sample(verdict, leaves_noise, structure):
+            how = ("takes the validation gap to noise and the tests on the residual find no structure"
+                   if verdict.effect == "drift" else "fitted on the fit part, takes the validation gap to noise")
             echo(f"the identified model misses the validation part {id_err['validation_over_own']:.3g}x as far as its "
-                 f"own records, but {verdict.effect}, fitted on the fit part, takes the validation gap to noise")
+                 f"own records, but {verdict.effect} {how}")
         else:
             echo(f"the identified model misses the validation part {id_err['validation_over_own']:.3g}x as far as "
                  f"its own records: it does not generalise, and no effect is credited with repairing it")
