@@ -56,7 +56,7 @@ class NoiseFloor:
                 "slow_z": self.slow_z}
 
 
-def _kappa(e: np.ndarray) -> float:
+def correlation_time(e: np.ndarray) -> float:
     """Integrated autocorrelation time of ``e`` by batch means (>= 1)."""
     n = e.size
     if n < 200:
@@ -100,7 +100,7 @@ def noise_floor(pairs, width: int, y_scale: float) -> NoiseFloor:
     # the median over pairs: a pair whose difference carries more than noise (a gain that wanders
     # multiplies a fast input's fast output) does not inflate the floor of the others
     sigma = float(max(np.median([np.std(p) for p in parts]), 1e-6 * y_scale))
-    kappa = _kappa(e)
+    kappa = correlation_time(e)
     # slow part: non-overlapping block means of d/sqrt(2) over `width` samples; for noise alone
     # their mean square is sigma^2 kappa / width with relative s.d. sqrt(2 / blocks)
     m = max(width, 20)

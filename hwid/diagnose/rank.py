@@ -25,7 +25,7 @@ from scipy.optimize import least_squares
 from hwid.diagnose import effects as effect_models
 from hwid.diagnose import search
 from hwid.diagnose.baseline import cancel_slow_pairs, mirror_rhp_zeros, split_modes
-from hwid.diagnose.gap import rms
+from hwid.diagnose.gap import correlation_time, rms
 from hwid.diagnose.modelsim import ModelSim, ReblockedSim
 from hwid.diagnose.verdict import Candidate, bic_score, explained_fraction, rank
 from hwid.model import InputNonlinearity
@@ -451,9 +451,8 @@ class EffectFitter:
         labelled development logs' bends (11, identified from the log) two verdicts turned right
         and none wrong; on 13 live identified diagnoses whose bend had reached degree 6 no verdict
         moved (the true bends still grow: their fits' residuals are close to noise)."""
-        from hwid.diagnose.gap import _kappa
         r = self._residual(eff, c.theta)
-        kappa = max(_kappa(r) * self.stride, self.kappa)
+        kappa = max(correlation_time(r) * self.stride, self.kappa)
         return max(self.n_fit / kappa, 2.0)
 
     def fit_criterion(self, c: Candidate, n: float | None = None) -> float:

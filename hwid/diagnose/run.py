@@ -165,6 +165,23 @@ def repairs_out_of_sample(verdict, leaves_noise, structure=None) -> bool:
     return bool(structure) and all(s["kind"] == "none" for s in structure)
 
 
+def _unless_generalising(verdict, ratio: float, val: Validation, leaves_noise, echo):
+    """The verdict where the identified model misses validation ``ratio`` times as far as its own
+    records (it does not generalise): kept if it repairs the model out of sample
+    (:func:`repairs_out_of_sample`), else ``"unexplained"``."""
+    structure = (_remainder(val, [val.exps[i] for i in val.val_idx])
+                 if isinstance(verdict, Candidate) and verdict.effect == "drift" else None)
+    if repairs_out_of_sample(verdict, leaves_noise, structure):
+        how = ("takes the validation gap to noise and the tests on the residual find no structure"
+               if verdict.effect == "drift" else "fitted on the fit part, takes the validation gap to noise")
+        echo(f"the identified model misses the validation part {ratio:.3g}x as far as its own records, but "
+             f"{verdict.effect} {how}")
+        return verdict
+    echo(f"the identified model misses the validation part {ratio:.3g}x as far as its own records: it does not "
+         f"generalise, and no effect is credited with repairing it")
+    return "unexplained"
+
+
 def drift_additivity(pairs, design, sigma: float) -> dict:
     """Whether what changes between repeats is an additive drift (:func:`hwid.diagnose.gap.drift_is_additive`,
     each pair against its own mean output); without repeats nothing tells it from a wandering gain:
@@ -240,17 +257,7 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
     if why:
         echo(why)
     if id_err is not None and not id_err.get("generalises", True) and verdict != "none":
-        structure = (_remainder(val, [val.exps[i] for i in val.val_idx])
-                     if isinstance(verdict, Candidate) and verdict.effect == "drift" else None)
-        if repairs_out_of_sample(verdict, leaves_noise, structure):
-            how = ("takes the validation gap to noise and the tests on the residual find no structure"
-                   if verdict.effect == "drift" else "fitted on the fit part, takes the validation gap to noise")
-            echo(f"the identified model misses the validation part {id_err['validation_over_own']:.3g}x as far as its "
-                 f"own records, but {verdict.effect} {how}")
-        else:
-            echo(f"the identified model misses the validation part {id_err['validation_over_own']:.3g}x as far as "
-                 f"its own records: it does not generalise, and no effect is credited with repairing it")
-            verdict = "unexplained"
+        verdict = _unless_generalising(verdict, id_err["validation_over_own"], val, leaves_noise, echo)
     groups = indistinguishable(cands, val.y_val, val.m_val, floor.sigma, floor.kappa, drift_ok,
                                leaves_noise=leaves_noise, max_left=max_left, partial=partial) if test.significant else []
     cost = {**cost, "seconds_analysis": time.perf_counter() - t0}
