@@ -259,16 +259,19 @@ def test_report_says_how_the_log_was_used(rate_log):
     assert "From the logs alone: split by experiments" in html and "settled holds" in html
 
 
-def _log_validation(residual, x):
-    """A two-record log's :class:`hwid.diagnose.run.Validation` stand-in: the model's output ``x``
-    and the measured output ``x + residual`` on both records, one fit and one validation."""
+def _log_validation(residual, x, u=None, mask=None):
+    """A two-record log's :class:`hwid.diagnose.run.Validation`: the model's output ``x`` and the
+    measured output ``x + residual`` on both records, one fit and one validation (default input: a
+    square wave; default mask: every sample)."""
     from types import SimpleNamespace
-    u = np.sign(np.sin(0.3 * np.arange(x.size) * logs.DT))
-    exps = [SimpleNamespace(u=u, mask=np.ones(x.size, bool), variable={}) for _ in range(2)]
+
+    from hwid.diagnose.run import Validation
+    u = np.sign(np.sin(0.3 * np.arange(x.size) * logs.DT)) if u is None else u
+    m = np.ones(x.size, bool) if mask is None else mask
+    exps = [SimpleNamespace(u=u, mask=m, variable={}) for _ in range(2)]
     recs = [SimpleNamespace(y=x + r) for r in residual]
     sim = SimpleNamespace(x=[x])
-    return SimpleNamespace(design=SimpleNamespace(dt=logs.DT), exps=exps, records=recs, fit_idx=[0],
-                           val_idx=[1], sim_fit=sim, sim_val=sim, y_val=[recs[1].y], x_model=[x, x])
+    return Validation(SimpleNamespace(dt=logs.DT), exps, recs, [0], [1], sim, sim, None, 0.0, 0.0)
 
 
 def test_drift_from_the_residual_needs_a_slow_wander_that_the_smoother_takes_out():
@@ -305,7 +308,6 @@ def test_a_remainder_of_the_plays_state_is_no_drift_where_a_candidate_explains_h
     held direction the motion explains it all; a drift's wander it does not. Where a deterministic
     candidate explains half the excess (at a lower score than the smoother's), the remainder of the
     play's state is then no drift; a wander in time still is."""
-    from types import SimpleNamespace
     from hwid.diagnose.gap import held_direction, motion_share
     from hwid.diagnose.run import drift_from_residual
     rng = np.random.default_rng(7)
@@ -324,11 +326,7 @@ def test_a_remainder_of_the_plays_state_is_no_drift_where_a_candidate_explains_h
     assert motion_share([(x + walk[0], x, m, u)], 100, held=True) < 0.2
 
     def val(residual):
-        exps = [SimpleNamespace(u=u, mask=m, variable={}) for _ in range(2)]
-        recs = [SimpleNamespace(y=x + r) for r in residual]
-        sim = SimpleNamespace(x=[x])
-        return SimpleNamespace(design=SimpleNamespace(dt=logs.DT), exps=exps, records=recs, fit_idx=[0],
-                               val_idx=[1], sim_fit=sim, sim_val=sim, y_val=[recs[1].y], x_model=[x, x])
+        return _log_validation(residual, x, u, m)
     cands = [Candidate("drift", "noise", {"window_s": 2.0}, 0.01, 0.01, 0.95, 100.0, 1.0),
              Candidate("curved_borders", "input", {}, 0.01, 0.01, 0.6, 80.0, 13.0)]
     additive = {}

@@ -457,11 +457,10 @@ class EffectFitter:
         kappa = max(correlation_time(r) * self.stride, self.kappa)
         return max(self.n_fit / kappa, 2.0)
 
-    def fit_criterion(self, c: Candidate, n: float | None = None) -> float:
+    def fit_criterion(self, c: Candidate, n: float) -> float:
         """BIC of a candidate on the fit experiments, ``n ln(gap_fit^2) + k ln(n)`` with ``n`` the
-        independent samples (default :attr:`n_eff_fit`, the noise's; its own parameters counted, the
-        model's are every candidate's)."""
-        n = self.n_eff_fit if n is None else float(n)
+        independent samples (:meth:`n_eff_residual`; its own parameters counted, the model's are
+        every candidate's)."""
         return float(n * np.log(max(c.gap_fit ** 2, 1e-300)) + c.k * np.log(n))
 
     def _fit_one(self, eff: effect_models.Effect, starts=None) -> Candidate:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -85,6 +86,16 @@ class Validation:
     @property
     def m_val(self) -> list:
         return [self.exps[i].mask for i in self.val_idx]
+
+    @cached_property
+    def remainder(self) -> list[dict]:
+        """What the model's validation residual looks like, from the tests on it
+        (:mod:`hwid.diagnose.residual_structure`); computed once, asked by the drift from a log's
+        residual, the generalisation veto and the result."""
+        segments = [residual_structure.Segment(self.exps[i].u, y, x, self.design.dt, self.exps[i].mask,
+                                               self.exps[i].variable.get("omega"))
+                    for i, y, x in zip(self.val_idx, self.y_val, self.sim_val.x)]
+        return residual_structure.residual_structure(segments)
 
     @property
     def x_model(self) -> list:
@@ -169,8 +180,7 @@ def _unless_generalising(verdict, ratio: float, val: Validation, leaves_noise, e
     """The verdict where the identified model misses validation ``ratio`` times as far as its own
     records (it does not generalise): kept if it repairs the model out of sample
     (:func:`repairs_out_of_sample`), else ``"unexplained"``."""
-    structure = (_remainder(val, [val.exps[i] for i in val.val_idx])
-                 if isinstance(verdict, Candidate) and verdict.effect == "drift" else None)
+    structure = val.remainder if isinstance(verdict, Candidate) and verdict.effect == "drift" else None
     if repairs_out_of_sample(verdict, leaves_noise, structure):
         how = ("takes the validation gap to noise and the tests on the residual find no structure"
                if verdict.effect == "drift" else "fitted on the fit part, takes the validation gap to noise")
@@ -460,7 +470,7 @@ def drift_from_residual(val: Validation, cands, additive: dict, echo) -> bool:
                  f"residual follows the level and the direction the input last moved ({held:.2f} of it "
                  f"explained): a drift is not told from the residual")
             return False
-    structure = _remainder(val, [val.exps[i] for i in val.val_idx])
+    structure = val.remainder
     if structure and structure[0]["kind"] != "none":
         return False
     echo(f"the holds do not show the plant wandering, but the slow part of the residual is not a function of the "
@@ -595,15 +605,8 @@ def _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, te
         design={"settle_s": design.settle_s, "omega_c": design.omega_c, "u_range": [design.u_lo, design.u_hi],
                 "amplitude": design.amplitude, "experiments": [e.name for e in val.exps]},
         cost=dict(cost),
-        residual_structure=_remainder(val, val_exps) if name == "unexplained" else [],
+        residual_structure=val.remainder if name == "unexplained" else [],
         indistinguishable=list(groups))
-
-
-def _remainder(val: Validation, val_exps) -> list[dict]:
-    """What the validation residual of the model looks like, from tests on it (an unexplained gap)."""
-    segments = [residual_structure.Segment(e.u, y, x, val.design.dt, e.mask, e.variable.get("omega"))
-                for e, y, x in zip(val_exps, val.y_val, val.sim_val.x)]
-    return residual_structure.residual_structure(segments)
 
 
 def _echo_baseline(fitter, gap_before, gap_ref, floor, test, echo) -> None:
