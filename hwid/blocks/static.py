@@ -38,6 +38,30 @@ def polyval(w, coefficients) -> np.ndarray:
     return _horner(np.ascontiguousarray(w.ravel()), c).reshape(w.shape)
 
 
+@njit(cache=True)
+def _legendre_rows(x, degree, out):
+    n = x.shape[0]
+    for k in range(n):
+        out[0, k] = 1.0
+    if degree > 0:
+        for k in range(n):
+            out[1, k] = x[k]
+    for i in range(2, degree + 1):
+        a, b = 2.0 * i - 1.0, i - 1.0
+        for k in range(n):
+            out[i, k] = (out[i - 1, k] * x[k] * a - out[i - 2, k] * b) / i
+
+
+def legendre_vander(x, degree: int) -> np.ndarray:
+    """The Legendre polynomials ``P_0 .. P_degree`` at ``x`` (in [-1, 1]), one column each: the
+    numbers of ``numpy.polynomial.legendre.legvander`` (Bonnet's recursion, the same operations in
+    the same order), each polynomial in one vectorised pass over the samples."""
+    x = np.ascontiguousarray(x, dtype=float).ravel()
+    out = np.empty((int(degree) + 1, x.size))
+    _legendre_rows(x, int(degree), out)
+    return out.T
+
+
 @dataclass(frozen=True)
 class PolynomialH:
     """``h(w) = sum_i c_i w^i`` (ascending powers, as in the config's ``polynomial``)."""

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
+from hwid.blocks.static import legendre_vander
 from hwid.diagnose import effects as effect_models
 from hwid.diagnose import search
 from hwid.diagnose.baseline import cancel_slow_pairs, mirror_rhp_zeros, split_modes
@@ -106,6 +107,13 @@ class EffectFitter:
         n = sum(int(m.sum()) for m in self.mf)
         self.stride = max(1, int(np.ceil(n / max_samples)))
         self.n_fit = n
+        # the samples a residual is made of (scored, and on the fit part decimated), and the
+        # outputs there: h's design matrix is built on them alone where the effect's output stage
+        # is pointwise (h's least squares and every residual see nothing else)
+        self._at = {"fit": [np.flatnonzero(m)[::self.stride] for m in self.mf],
+                    "val": [np.flatnonzero(m) for m in self.mv]}
+        self._y_at = {k: np.concatenate([y[i] for y, i in zip(ys, self._at[k])])
+                      for k, ys in (("fit", self.yf), ("val", self.yv))}
         self.n_val = sum(int(m.sum()) for m in self.mv)
         self.gap_before = rms(np.concatenate([(y - x)[m] for y, x, m in zip(self.yv, sim_val.x, self.mv)]))
         self.gap_before_fit = rms(np.concatenate([(y - x)[m] for y, x, m in zip(self.yf, sim_fit.x, self.mf)]))
@@ -155,33 +163,38 @@ class EffectFitter:
 
     # ----------------------------------------------------------------------- h re-estimated jointly
     def _basis(self, w) -> np.ndarray:
-        return np.polynomial.legendre.legvander((np.asarray(w, float) - self._w_c) / self._w_r, self.degree)
+        """h's design matrix at ``w``: Legendre polynomials of w mapped to [-1, 1]."""
+        return legendre_vander((np.asarray(w, float) - self._w_c) / self._w_r, self.degree)
 
-    def _designs(self, eff, theta, which) -> list[np.ndarray]:
+    def _designs(self, eff, theta, which, scored: bool = False) -> list[np.ndarray]:
         if self.refit_g:
             theta, g = self._split(eff, theta)
             simw = self._g_sims(g)[0 if which == "fit" else 1]
         else:
             simw = self.sfw if which == "fit" else self.svw
-        return self._phi(eff, theta, simw)
+        return self._phi(eff, theta, simw, self._at[which] if scored else None)
 
-    def _phi(self, eff, own, simw) -> list[np.ndarray]:
+    def _phi(self, eff, own, simw, at=None) -> list[np.ndarray]:
         """h's design matrix on each experiment of ``simw`` (the model with h = identity) with the
-        effect ``eff`` at its own parameters ``own`` (a linear output stage applied to each column)."""
+        effect ``eff`` at its own parameters ``own`` (a linear output stage applied to each column);
+        at the samples ``at`` of each experiment only, if given."""
+        filtered = eff is not None and eff.post_linear and type(eff).post is not effect_models.Effect.post
         out = []
         for i in range(len(simw.inputs)):
-            Phi = self._basis(simw.w[i] if eff is None else eff.pre(simw, own, i))
-            if eff is not None and eff.post_linear and type(eff).post is not effect_models.Effect.post:
-                Phi = eff.post(Phi, own, simw.dt)      # a linear stage: each column through it
-            out.append(Phi)
+            w = simw.w[i] if eff is None else eff.pre(simw, own, i)
+            if filtered:        # a linear stage with memory: each column through it whole
+                Phi = eff.post(self._basis(w), own, simw.dt)
+                out.append(Phi if at is None else Phi[at[i]])
+            else:
+                out.append(self._basis(w if at is None else w[at[i]]))
         return out
 
     def _h_coef(self, eff, theta, Phis) -> np.ndarray:
-        """h's coefficients (Legendre basis) by least squares on the fit data; with a non-linear
-        output stage (a clip), on the samples the current fit leaves unclipped."""
-        st = self.stride
-        A = np.concatenate([P[m][::st] for P, m in zip(Phis, self.mf)])
-        b = np.concatenate([y[m][::st] for y, m in zip(self.yf, self.mf)])
+        """h's coefficients (Legendre basis) by least squares on the fit data (``Phis`` on its
+        scored samples, :meth:`_designs` with ``scored``); with a non-linear output stage (a clip),
+        on the samples the current fit leaves unclipped."""
+        A = np.concatenate(Phis)
+        b = self._y_at["fit"]
         c = _lsq(A, b)
         if eff is not None and not eff.post_linear:
             # least squares of y - clip(h): an active set, the samples whose prediction the output
@@ -204,10 +217,19 @@ class EffectFitter:
                 prev = sel
         return c
 
-    def _refit_predict(self, eff, theta, which) -> list[np.ndarray]:
-        Pf = self._designs(eff, theta, "fit")
+    def _refit_predict(self, eff, theta, which, scored: bool = False) -> list[np.ndarray]:
+        """The model with ``eff`` at ``theta`` and h re-estimated on the fit data, on the ``which``
+        experiments: whole, or at their scored samples only (``scored``)."""
+        if which == "fit" and not scored:
+            whole = self._designs(eff, theta, "fit")
+            Pf = [P[i] for P, i in zip(whole, self._at["fit"])]
+        else:
+            Pf = self._designs(eff, theta, "fit", scored=True)
         c = self._h_coef(eff, theta, Pf)
-        Ps = Pf if which == "fit" else self._designs(eff, theta, "val")
+        if which == "fit":
+            Ps = Pf if scored else whole
+        else:
+            Ps = self._designs(eff, theta, "val", scored)
         out = [P @ c for P in Ps]
         if eff is not None and not eff.post_linear:
             out = [eff.post(x, theta, self.sf.dt) for x in out]
@@ -406,9 +428,8 @@ class EffectFitter:
         st = self.stride if which == "fit" else 1
         if self.refit_h:
             if self.refit_g and not self._stable(self.linear(self._split(eff, theta)[1])):
-                return np.concatenate([(y[m])[::st] for y, m in zip(ys, ms)]) * 10.0
-            xs = self._refit_predict(eff, theta, which)
-            return np.concatenate([((y - x)[m])[::st] for y, x, m in zip(ys, xs, ms)])
+                return self._y_at[which] * 10.0
+            return self._y_at[which] - np.concatenate(self._refit_predict(eff, theta, which, scored=True))
         parts = []
         for i, (y, m) in enumerate(zip(ys, ms)):
             x = eff.simulate(sim, theta, i)
@@ -644,7 +665,7 @@ class EffectFitter:
         if not self.refit_h:
             sim = ModelSim(self.sf.model, dt, inputs)
             return [sim.x[i] if eff is None else eff.simulate(sim, theta, i) for i in range(len(inputs))]
-        c = self._h_coef(eff, theta, self._designs(eff, theta, "fit"))
+        c = self._h_coef(eff, theta, self._designs(eff, theta, "fit", scored=True))
         if self.refit_g:
             own, g = self._split(eff, theta)
             F, G = self.input_nl(g), self.linear(g)
