@@ -375,3 +375,16 @@ def test_the_real_friction_damper_is_not_named_a_catalogue_effect(tmp_path):
     best = s["candidates"][0]
     assert best["explained_fraction"] < 0.5
     assert best["gap_after"] > ID_PARTIAL[1] * s["noise_floor"] or best["explained_fraction"] < ID_PARTIAL[0]
+
+
+def test_a_drift_the_holds_of_a_log_show_must_take_out_most_of_the_excess():
+    """A log's holds may wander for more than a drift (hwid/diagnose/run.py,
+    ``drift_takes_the_excess``): the drift is a candidate only where its smoother takes out
+    :data:`DRIFT_SHARE` of the excess, as one told from the residual must. A judged stick-slip
+    friction's smoother took out 0.58; the development logs' drifts 0.83 at least."""
+    from hwid.diagnose.run import DRIFT_SHARE, drift_takes_the_excess
+    drift = lambda share: Candidate("drift", "noise", {"window_s": 1.45}, 0.012, 0.012, share, 100.0, 1.0)
+    assert DRIFT_SHARE == pytest.approx(0.8)
+    assert not drift_takes_the_excess([drift(0.58)], _quiet)
+    assert drift_takes_the_excess([drift(0.83)], _quiet)
+    assert drift_takes_the_excess([Candidate("input_saturation", "input", {}, 0.01, 0.01, 0.1, 5.0, 2.0)], _quiet)

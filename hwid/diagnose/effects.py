@@ -421,7 +421,8 @@ class Resonance(Effect):
         # np.polymul's product without its poly1d objects (6 % of a profiled serial diagnosis)
         den = np.convolve(G.den, [1.0, 2 * z * wn, wn * wn])
         num = np.convolve(G.num, [wn * wn])
-        return sim.from_v(sim.v[i], LinearBlock(tuple(num), tuple(den), G.delay), i)
+        mode = np.roots([1.0, 2 * z * wn, wn * wn])     # its own, which may ring past the lead-in
+        return sim.from_v(sim.v[i], LinearBlock(tuple(num), tuple(den), G.delay), i, ringing=mode)
 
 
 class SensorLag(Effect):
