@@ -148,7 +148,7 @@ class ModelSim:
         new.model = HWModel(self.model.input, self.model.linear, h)
         new.dt, new.inputs, new.v, new.w = self.dt, self.inputs, self.v, self.w
         new.u_before, new.lead, new.measured = self.u_before, self.lead, self.measured
-        new.pre = self.pre
+        new.pre, new.free_ringing = self.pre, self.free_ringing
         new.x = [h(w) for w in self.w]
         return new
 
@@ -275,6 +275,9 @@ class ModelSim:
     RINGING_SHOWS = 0.1
     #: Gauss-Newton steps of the ringing's amplitudes (each a few evaluations of h)
     RINGING_STEPS = 6
+    #: whether an effect's own mode may ring from an unknown start (:meth:`ringing`); off for a
+    #: model identified on the plant (:class:`hwid.diagnose.rank.EffectFitter` with ``refit_g``)
+    free_ringing = True
 
     def ringing(self, w, i: int, G: LinearBlock, poles) -> np.ndarray:
         """``w`` (G's response on experiment ``i``) with the free response of the modes ``poles``
@@ -365,7 +368,7 @@ class ModelSim:
         if i is not None:
             w2 = self.rest_level(v, i, G, w)
             w = w if w2 is None else w2
-            if len(ringing):
+            if len(ringing) and self.free_ringing:
                 w = self.ringing(w, i, G, ringing)
         return self.model.output(w)
 
@@ -381,6 +384,7 @@ class ReblockedSim(ModelSim):
         self.lead = getattr(base, "lead", None)
         self.pre = getattr(base, "pre", None)
         self.measured = getattr(base, "measured", None)
+        self.free_ringing = getattr(base, "free_ringing", True)
         self._v = self._w = self._x = None
 
     @property
