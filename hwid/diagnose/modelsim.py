@@ -295,7 +295,8 @@ class ModelSim:
         two numbers per pair (one per real pole) and per experiment, nuisance parameters like
         :meth:`gear_start`. Only the effect's own modes: the model's are settled by the lead-in
         designed for them, and a free response of each of G's modes would let the effect fit every
-        record's first moments (a log's parts are scored from their start).
+        record's first moments (a log's parts are scored from their start). Only with a given
+        model (:attr:`free_ringing`): an identified G's own errors ring at each start too.
 
         Judged blind, a paper-base resonance at 0.4 rad/s, zeta 0.08 (its envelope decays in 32 s,
         the lead-in held 60 s) left 34x the noise floor at its true parameters, all of it in each
