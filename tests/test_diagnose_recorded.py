@@ -279,7 +279,7 @@ def test_drift_from_the_residual_needs_a_slow_wander_that_the_smoother_takes_out
     slow wander in time is a drift when the smoother takes out most of the excess; the same
     residual with the smoother explaining 0.59 of it (a friction did) is not, and neither is a slow
     remainder that follows the motion."""
-    from hwid.diagnose.run import drift_from_residual
+    from hwid.diagnose.log_drift import drift_from_residual
     rng = np.random.default_rng(4)
     n = 4000
     t = np.arange(n) * logs.DT
@@ -309,7 +309,7 @@ def test_a_remainder_of_the_plays_state_is_no_drift_where_a_candidate_explains_h
     candidate explains half the excess (at a lower score than the smoother's), the remainder of the
     play's state is then no drift; a wander in time still is."""
     from hwid.diagnose.gap import held_direction, motion_share
-    from hwid.diagnose.run import drift_from_residual
+    from hwid.diagnose.log_drift import drift_from_residual
     rng = np.random.default_rng(7)
     levels = np.concatenate([np.linspace(-1, 1, 9), np.linspace(1, -1, 9)[1:-1]] * 3)
     u = np.repeat(levels, 250)
@@ -382,7 +382,7 @@ def test_a_drift_the_holds_of_a_log_show_must_take_out_most_of_the_excess():
     ``drift_takes_the_excess``): the drift is a candidate only where its smoother takes out
     :data:`DRIFT_SHARE` of the excess, as one told from the residual must. A judged stick-slip
     friction's smoother took out 0.58; the development logs' drifts 0.83 at least."""
-    from hwid.diagnose.run import DRIFT_SHARE, drift_takes_the_excess
+    from hwid.diagnose.log_drift import DRIFT_SHARE, drift_takes_the_excess
     drift = lambda share: Candidate("drift", "noise", {"window_s": 1.45}, 0.012, 0.012, share, 100.0, 1.0)
     assert DRIFT_SHARE == pytest.approx(0.8)
     assert not drift_takes_the_excess([drift(0.58)], _quiet)

@@ -15,6 +15,7 @@ from hwid import HwidError, protocols
 from hwid.diagnose import experiments, gap, rank, residual_structure
 from hwid.diagnose.baseline import has_outside_modes
 from hwid.diagnose.effects import BLOCK, CATALOGUE, Scale, catalogue
+from hwid.diagnose.log_drift import drift_from_residual, drift_takes_the_excess, repeats_under_best
 from hwid.diagnose.modelsim import ModelSim
 from hwid.diagnose.result import DiagnosisResult
 from hwid.diagnose.sim_side import load_model
@@ -58,11 +59,6 @@ GIVEN_MAX_LEFT = 2.0
 #: explaining 0.30-0.49) and no correct `unexplained` or `none` was lost; with a given model the
 #: rule would have named a wandering gain and gained nothing.
 ID_PARTIAL = (0.25, 1.5)
-
-#: The least share of the excess the drift smoother must take out for a drift named from a log,
-#: told from its residual (:func:`drift_from_residual`) or its holds
-#: (:func:`drift_takes_the_excess`); the drifts of the development logs: 0.81-1.00.
-DRIFT_SHARE = 0.8
 
 
 @dataclass
@@ -401,103 +397,6 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
         test = gap.gap_test(gap_ref, n_val, floor, min_ratio=ID_MIN_RATIO)
         cands = alternative_baseline(cands, [], gap_ref, floor.sigma, fitter.n_eff)
     return cands, gap_ref, test
-
-
-def repeats_under_best(val: Validation, cands, wander, additive: dict, echo) -> bool:
-    """Whether the plant repeats itself once the best deterministic candidate is the model: a log's
-    holds count as showing the plant wander (``slow_z``) where the model is still, or in the same
-    state, and the plant is not; a wrong model does not settle where the plant does, nor put it in
-    the same state where the model says so (a dead zone the model lacks leaves the plant at
-    different places after holds the model ends alike). Measured on the validation records with
-    the candidate explaining most (at least half the excess, a positive score) as the model: where
-    its holds no longer wander (``slow_z <= 10``), the wander was its effect's, and the holds are
-    evidence against a drift: one large enough to explain what the candidate does would show in
-    them (:func:`drift_from_residual` is not asked). Writes ``slow_z_validation`` into ``additive``.
-
-    On a judged seed's logs, a dead zone (0.79 explained) and a wander of 119 z in the holds of the
-    identified model was called `drift`."""
-    best = next((c for c in cands if c.effect != "drift" and c.score > 0 and c.predictions), None)
-    if best is None or best.explained_fraction < 0.5:
-        return False
-    z_model, z_best = wander(val.sim_val.x), wander(best.predictions)
-    additive["slow_z_validation"] = {"model": z_model, best.effect: z_best}
-    if not z_best <= 10:
-        return False
-    echo(f"the holds wander by {z_model:.3g} z about the model on the validation part and by {z_best:.3g} z "
-         f"about {best.effect}: the plant repeats itself, and the holds are no evidence of a drift")
-    return True
-
-
-def drift_takes_the_excess(cands, echo) -> bool:
-    """Whether a drift the holds of a log show takes out at least :data:`DRIFT_SHARE` of the
-    excess, as one told from the residual must (:func:`drift_from_residual`). A model fitted to a
-    log (or given) is validated on records of the same kinds as its fit, and the drift smoother
-    follows any slow remainder: where a wander is all the model lacks, it leaves little more than
-    noise. One that leaves a fifth of the excess or more leaves a remainder that follows the input
-    faster than a wander does.
-
-    Judged seeds' stick-slip frictions identified from their logs were called `drift` four times
-    in four (the holds creep after each stop; the smoother explained 0.58-0.66); the drifts of the
-    labelled development logs explained 0.83-1.00, with the rig's simulator as the model too."""
-    drift = next((c for c in cands if c.effect == "drift"), None)
-    if drift is None or drift.explained_fraction >= DRIFT_SHARE:
-        return True
-    echo(f"the holds wander, but the drift smoother takes out only {drift.explained_fraction:.2f} of the excess: "
-         f"the rest follows the input, and a drift is not all the model lacks")
-    return False
-
-
-def drift_from_residual(val: Validation, cands, additive: dict, echo) -> bool:
-    """Whether a log's slow remainder is a drift though its holds do not show the plant wandering:
-    the drift smoother takes out at least :data:`DRIFT_SHARE` of the excess (it follows any slow
-    remainder: one that leaves more is not a slow wander alone), the model's residual, smoothed
-    over the drift candidate's window, is not a function of the motion
-    (:func:`hwid.diagnose.gap.motion_share` below :data:`hwid.diagnose.gap.MOTION_SHARE`), and no
-    test on the validation residual finds a structure (a varying gain, a loop, a direction of
-    motion: :mod:`hwid.diagnose.residual_structure`). Where a deterministic candidate explains at
-    least half the excess, the slow residual must not follow the motion with the direction the input
-    last moved either (``gap.motion_share(..., held=True)``): a candidate that explains that much
-    makes a remainder of the play's state plausible. Writes ``motion_share`` (and
-    ``motion_share_held``) into ``additive``.
-
-    Judged on a fresh seed without the first condition, a stick-slip friction identified from its
-    log (drift explained 0.59, motion share 0.11, no structure found) was called `drift`. A drift
-    that a catalogue effect also explains in part (a bend, 0.55) stays eligible: ranked by what it
-    explains (0.97), it is the verdict. But not where a deterministic candidate explains at least
-    half the excess and its score (the information criterion, which charges the smoother its
-    effective degrees of freedom) is the higher: two bent borders (0.75 and 0.73 explained, scores
-    1104 and 1223 against the smoother's 897 and 984) were called `drift`. On the labelled logs of
-    four seeds, no drift had such a rival."""
-    drift = next((c for c in cands if c.effect == "drift"), None)
-    if drift is None or drift.explained_fraction < DRIFT_SHARE:
-        return False
-    rival = next((c for c in cands if c.effect != "drift" and c.explained_fraction >= 0.5 and c.score > drift.score),
-                 None)
-    if rival is not None:
-        echo(f"{rival.effect} explains {rival.explained_fraction:.2f} of the excess and scores higher than the drift "
-             f"smoother ({rival.score:.4g} against {drift.score:.4g}): a drift is not told from the residual")
-        return False
-    width = max(int(round(float(drift.params["window_s"]) / val.design.dt)), 3)
-    segments = [(r.y, x, e.mask, e.u) for r, x, e in zip(val.records, val.x_model, val.exps)]
-    share = gap.motion_share(segments, width)
-    additive["motion_share"] = share
-    if not share < gap.MOTION_SHARE:
-        return False
-    half = next((c for c in cands if c.effect != "drift" and c.explained_fraction >= 0.5 and c.score > 0), None)
-    if half is not None:
-        held = gap.motion_share(segments, width, held=True)
-        additive["motion_share_held"] = held
-        if not held < gap.MOTION_SHARE:
-            echo(f"{half.effect} explains {half.explained_fraction:.2f} of the excess, and the slow part of the "
-                 f"residual follows the level and the direction the input last moved ({held:.2f} of it "
-                 f"explained): a drift is not told from the residual")
-            return False
-    structure = val.remainder
-    if structure and structure[0]["kind"] != "none":
-        return False
-    echo(f"the holds do not show the plant wandering, but the slow part of the residual is not a function of the "
-         f"motion ({share:.2f} of it explained) and has no structure: a drift is a candidate")
-    return True
 
 
 def second_test(cands, gap_ref, floor, drift_ok: bool, n_eff: float):
