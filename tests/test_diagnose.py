@@ -668,6 +668,17 @@ def test_a_deterministic_effect_at_the_floor_survives_a_model_that_does_not_gene
     assert repairs_out_of_sample(drift, leaves_noise, [{"kind": "none", "evidence": "", "p_value": 0.3}])
     assert not repairs_out_of_sample(cand("input_saturation", 0.0125), leaves_noise)
     assert not repairs_out_of_sample("unexplained", leaves_noise)
+    # a judged seed's log: the drift left 1.22x the floor, the model's own gap on its fit records
+    # was 3.0x the floor; the smoother does not re-fit the model the drift biased
+    none = [{"kind": "none", "evidence": "", "p_value": 0.3}]
+    drift = cand("drift", 1.22 * nf.sigma, "noise")
+    assert not leaves_noise(drift.gap_after)
+    assert not repairs_out_of_sample(drift, leaves_noise, none)
+    assert repairs_out_of_sample(drift, leaves_noise, none, own_gap=3.0 * nf.sigma)
+    assert not repairs_out_of_sample(drift, leaves_noise, gain, own_gap=3.0 * nf.sigma)
+    assert not repairs_out_of_sample(drift, leaves_noise, none, own_gap=1.1 * nf.sigma)
+    clip = cand("input_saturation", 1.22 * nf.sigma)                      # a joint fit re-fits the model
+    assert not repairs_out_of_sample(clip, leaves_noise, own_gap=3.0 * nf.sigma)
 
 
 def test_a_bend_grows_on_independent_samples_of_the_residual_not_of_the_noise():

@@ -21,7 +21,10 @@ def _slew(u, step, u0):
     return out
 
 
-def slewed(u, rate: float, dt: float) -> np.ndarray:
-    """``u`` through an actuator slewing at most ``rate`` units/s, starting at ``u[0]``."""
+def slewed(u, rate: float, dt: float, start: float | None = None) -> np.ndarray:
+    """``u`` through an actuator slewing at most ``rate`` units/s, starting at ``start`` (default
+    ``u[0]``: an actuator a driver sets where the record begins)."""
     u = np.ascontiguousarray(u, float)
-    return _slew(u, float(rate) * dt, float(u[0])) if u.size else u.copy()
+    if not u.size:
+        return u.copy()
+    return _slew(u, float(rate) * dt, float(u[0] if start is None else start))

@@ -60,13 +60,21 @@ def identified_model(cfg, plant, out_dir=None, echo=print) -> tuple[HWModel, dic
     """Identify the model from ``plant`` with the config's staircases and sines (both stages); the
     results go to ``out_dir`` as ``nonlinear.h5`` and ``linear.h5``. The origin dict carries the
     identification's records (``records``), which the diagnosis uses and then drops."""
-    from hwid.identify.linear import identify_linear
+    from hwid.identify.linear import identify_linear, run_sines, unsafe_precompensator
     from hwid.identify.nonlinear import identify_nonlinear
     if cfg.protocols.staircase is None or cfg.protocols.sine is None:
         raise HwidError(f"{cfg.source_path}: without --model, diagnose identifies the model first and "
                         f"needs both protocols.staircase and protocols.sine")
     t0 = time.perf_counter()
     nonlinear, nonlinear_records = identify_nonlinear(cfg, plant=plant)
+    unsafe = unsafe_precompensator(cfg, nonlinear)
+    if unsafe:
+        # stage 1 did not identify F: the sines run as they are, for the whole fit below
+        echo("stage 1 did not identify F: stage 2 is not run, and the sines drive the plant without a "
+             "pre-compensator")
+        _, linear_records = run_sines(cfg, None, plant=plant)
+        records = [r for r in list(nonlinear_records) + list(linear_records) if r.y is not None]
+        return _whole_instead(cfg, records, out_dir, unsafe, echo)
     linear, linear_records = identify_linear(cfg, nonlinear, plant=plant)
     if out_dir is not None:
         write_nonlinear(Path(out_dir) / "nonlinear.h5", cfg, nonlinear, nonlinear_records)
@@ -79,18 +87,26 @@ def identified_model(cfg, plant, out_dir=None, echo=print) -> tuple[HWModel, dic
     w_range = [float(x) for x in nonlinear.w_range]
     why = g_undetermined(linear)
     if why and out_dir is not None:
-        from hwid.diagnose.logs import identify_from_logs
-        echo(f"{why}: the model is fitted whole to the staircases and sines, with the input's slew rate")
-        model, origin = identify_from_logs(cfg, records, Path(out_dir), echo, rate_first=True)
-        w = np.concatenate([model.input.apply(r.u) for r in records])   # the w the records reached
-        return model, {**origin, "w_range": [float(w.min()), float(w.max())],
-                       "notes": [why] + list(origin.get("notes", []))}
+        return _whole_instead(cfg, records, out_dir, why, echo)
     notes: list = []
     model = model_from_stages(nonlinear, linear, notes)
     for note in notes:
         echo(note)
     return model, {"source": "identified", "w_range": w_range, "notes": notes,
                    "u_range": [float(min(levels)), float(max(levels))], "records": records}
+
+
+def _whole_instead(cfg, records, out_dir, why: str, echo) -> tuple[HWModel, dict]:
+    """The model fitted whole to the staircases and sines, with the input's slew rate, where the
+    two stages cannot stand for the plant (``why``): the records still hold its response."""
+    from hwid.diagnose.logs import identify_from_logs
+    if out_dir is None:
+        raise HwidError(f"{why}: the model cannot be identified in two stages")
+    echo(f"{why}: the model is fitted whole to the staircases and sines, with the input's slew rate")
+    model, origin = identify_from_logs(cfg, records, Path(out_dir), echo, rate_first=True)
+    w = np.concatenate([model.input.apply(r.u) for r in records])   # the w the records reached
+    return model, {**origin, "w_range": [float(w.min()), float(w.max())],
+                   "notes": [why] + list(origin.get("notes", []))}
 
 
 def g_undetermined(linear) -> str:

@@ -168,6 +168,8 @@ def _fit_one(s, Gd, W, n, m, fit_delay, tau0):
             except (ValueError, np.linalg.LinAlgError):
                 continue
         chi2 = float(np.sum(residual(x) ** 2))
+        if not (np.isfinite(chi2) and np.all(np.isfinite(x)) and x[n - 1] != 0):
+            continue                              # degenerate: not a denominator of degree n
         if best is None or chi2 < best[1]:
             best = (x, chi2, jac(x))
     return best

@@ -54,6 +54,10 @@ class _Problem:
     #: the input is clipped to a fitted ``[u_lo, u_hi]`` before F (an actuator that stops short of
     #: the commanded range; see :func:`hwid.identify.whole_clip.fit_clip_added`)
     with_clip: bool = False
+    #: with a rate: the actuator's position carries over from each record to the next (the records
+    #: in the order they were run, as on a rig whose actuator nobody resets), rather than starting
+    #: at each record's first input
+    carried: bool = False
     y: np.ndarray = field(init=False)
 
     def __post_init__(self):
@@ -85,31 +89,44 @@ class _Problem:
 
     def unpack(self, theta):
         """``(F, G, [(gear, rest), ...])`` of the outer parameters ``theta``."""
+        f, g, states, _ = self._unpacked(theta)
+        return f, g, states
+
+    def actuated(self, theta) -> list[np.ndarray]:
+        """Each record's input as the actuator passes it on: clipped, then slewed (from the
+        previous record's last position where it is ``carried``)."""
+        rate, clip = self.rate(theta), self.clip(theta)
+        out, last = [], None
+        for r in self.records:
+            u = r.u if clip is None else np.clip(r.u, *clip)
+            if rate is not None:
+                u = slewed(u, rate, r.dt, start=last if self.carried else None)
+                last = float(u[-1]) if u.size else last
+            out.append(u)
+        return out
+
+    def _unpacked(self, theta):
+        """``(F, G, states, actuated inputs)`` of ``theta``."""
         d_plus, log_sd, gap = theta[0], theta[1], theta[2]
         f = InputNonlinearity(self.type, 1.0, float(np.exp(log_sd)), float(d_plus), float(d_plus - np.exp(gap)))
         k = 3 + self.structure.n_params
         delay = float(abs(theta[k])) if self.with_delay else 0.0
         g = g_from_params(self.structure, theta[3:3 + self.structure.n_params], delay)
+        inputs = self.actuated(theta)
         states = []
         j = self.states_at
-        clip = self.clip(theta)
-        for r in self.records:
+        for u in inputs:
             # a Backlash-Inverse's start is anywhere its branches reach over the record, not only
             # between their values at u[0] (a record that opens with a hold shows it all along)
-            lo, hi = f.start_band(r.u if clip is None else np.clip(r.u, *clip))
+            lo, hi = f.start_band(u)
             frac = 0.5 * (1.0 + np.tanh(0.5 * theta[j]))
             states.append((lo + frac * (hi - lo), float(theta[j + 1])))
             j += 2
-        return f, g, states
+        return f, g, states, inputs
 
     def w(self, theta) -> np.ndarray:
-        f, g, states = self.unpack(theta)
-        out = []
-        rate, clip = self.rate(theta), self.clip(theta)
-        for r, (gear, rest) in zip(self.records, states):
-            u = r.u if clip is None else np.clip(r.u, *clip)
-            u = u if rate is None else slewed(u, rate, r.dt)
-            out.append(g.simulate(f.apply(u, gear), r.dt, rest))
+        f, g, states, inputs = self._unpacked(theta)
+        out = [g.simulate(f.apply(u, gear), r.dt, rest) for r, u, (gear, rest) in zip(self.records, inputs, states)]
         return np.concatenate(out)[self.keep]
 
     @property
@@ -117,7 +134,7 @@ class _Problem:
         """Its selection-table row's structure: G's, marked ``+delay``, ``+rate`` and ``+clip`` where
         those were fitted too."""
         return (str(self.structure) + "+delay" * self.with_delay + "+rate" * self.with_rate
-                + "+clip" * self.with_clip)
+                + " carried" * (self.with_rate and self.carried) + "+clip" * self.with_clip)
 
     def rate(self, theta) -> float | None:
         """The input's slew rate (units/s), or None without one."""
@@ -389,7 +406,7 @@ class WholeModelFit:
             return np.array([f.d_plus, np.log(f.slope_down), np.log(max(f.d_plus - f.d_minus, 1e-6)),
                              *g_p, *extra, *states], float)
         prob = _Problem(records, kind, structure, self.max_degree, self.delay)
-        grid = [np.array([d_plus, 0.0, log_gap, *g_p, *extra, *states]) for d_plus, log_gap in border_grid(records)]
+        grid = self.grid(records, structure)
         if borders is not None:
             # the borders (stage 1 from the levels) compete with the grid: from few levels they can
             # be far off while fitting those levels exactly, and the moving records then say so
@@ -398,6 +415,17 @@ class WholeModelFit:
                                      *g_p, *extra, *states], float))
         costs = [float(np.sum(prob.residual(t) ** 2)) for t in grid]
         return grid[int(np.argmin(costs))]
+
+    def grid(self, records, structure) -> list[np.ndarray]:
+        """The coarse border grid's outer starts (:func:`border_grid`; G at its default start, each
+        record's gear mid-play and G at rest at its first inputs)."""
+        span = max(r.u.size * r.dt for r in records)
+        g_p = g_params_from(structure, None, span, records[0].dt)
+        extra = [0.0] if self.delay else []
+        states = []
+        for r in records:
+            states += [0.0, float(np.median(r.u[: max(3, r.u.size // 50)]))]
+        return [np.array([d_plus, 0.0, log_gap, *g_p, *extra, *states]) for d_plus, log_gap in border_grid(records)]
 
     def hold(self, prob: _Problem, theta, table, note: str = "") -> None:
         """Make the fit ``theta`` of ``prob`` the selected one (``problem_``, ``theta_``, ``result_``
