@@ -388,3 +388,19 @@ def test_a_drift_the_holds_of_a_log_show_must_take_out_most_of_the_excess():
     assert not drift_takes_the_excess([drift(0.58)], _quiet)
     assert drift_takes_the_excess([drift(0.83)], _quiet)
     assert drift_takes_the_excess([Candidate("input_saturation", "input", {}, 0.01, 0.01, 0.1, 5.0, 2.0)], _quiet)
+
+
+def test_a_drift_must_leave_little_more_than_noise():
+    """With a given model, live or from a log, the drift smoother follows the output itself: where
+    a wander is all the model lacks it leaves about the noise (hwid/diagnose/log_drift.py,
+    ``drift_leaves_little``). A judged hysteretic friction's smoother left 1.73x the floor (0.82 of
+    the excess explained) with its rig's simulator and was called `drift`; the judged drifts left
+    0.88-0.96x."""
+    from hwid.diagnose.log_drift import DRIFT_MAX_LEFT, drift_leaves_little
+    sigma = 0.0115
+    drift = lambda left, share: Candidate("drift", "noise", {"window_s": 1.8}, 0.5, left * sigma, share, 100.0, 1.0)
+    assert DRIFT_MAX_LEFT == pytest.approx(1.5)
+    assert not drift_leaves_little([drift(1.73, 0.82)], sigma, _quiet)
+    assert drift_leaves_little([drift(1.22, 0.96)], sigma, _quiet)
+    assert drift_leaves_little([drift(0.88, 1.0)], sigma, _quiet)
+    assert drift_leaves_little([Candidate("input_saturation", "input", {}, 0.05, 0.05, 0.1, 5.0, 2.0)], sigma, _quiet)

@@ -15,7 +15,8 @@ from hwid import HwidError, protocols
 from hwid.diagnose import experiments, gap, rank, residual_structure
 from hwid.diagnose.baseline import has_outside_modes
 from hwid.diagnose.effects import BLOCK, CATALOGUE, Scale, catalogue
-from hwid.diagnose.log_drift import drift_from_residual, drift_takes_the_excess, repeats_under_best
+from hwid.diagnose.log_drift import (drift_from_residual, drift_leaves_little, drift_takes_the_excess,
+                                     repeats_under_best)
 from hwid.diagnose.modelsim import ModelSim
 from hwid.diagnose.result import DiagnosisResult
 from hwid.diagnose.sim_side import load_model
@@ -252,6 +253,8 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
         drift_ok = drift_takes_the_excess(cands, echo)
     elif from_logs and not repeats and test.significant and additive["additive"]:
         drift_ok = drift_from_residual(val, cands, additive, echo)
+    if not identified:
+        drift_ok = drift_ok and drift_leaves_little(cands, floor.sigma, echo)
     if not drift_ok:    # drift listed last: the plant repeats itself, or what changes is not additive
         cands = [c for c in cands if c.effect != "drift"] + [c for c in cands if c.effect == "drift"]
     by_effect = None

@@ -52,52 +52,77 @@ def fit_rate_first(fitter: WholeModelFit, records) -> float:
     """The whole model with the input's slew rate from the start, where the records say the input
     did not follow (stage 2 found no harmonic above the noise at half its sines or more: the sines
     were too fast for the actuator, :func:`hwid.diagnose.sim_side.g_undetermined`). Every type and
-    structure of ``fitter`` at h_bar's highest degree, from the border grid at the best of
-    ``RATE_POINTS`` rates, as in :func:`fit_rate_added` but without the search over fits without a
-    rate first (most of the whole fit's time: on a third-order rig slewing at 0.059 units/s that
-    search took 108 s and ended at 3.9x the noise; this fit took 11 s and found 0.0596). ``fitter``
-    holds the best fit (``problem_``, ``theta_``, ``result_``); returns its rate."""
+    structure of ``fitter`` at h_bar's highest degree, as in :func:`fit_rate_added` but without the
+    search over fits without a rate first (most of the whole fit's time: on a third-order rig
+    slewing at 0.059 units/s that search took 108 s and ended at 3.9x the noise; this fit took 11 s
+    and found 0.0596). The borders, the rate and the actuator's memory are chosen together on the
+    border grid, and each structure descends from the two best: chosen per structure from the
+    grid's borders without the rate, a judged third-order rig slewing at 0.0667 units/s came out
+    with borders at -2.2 and -2.7 for the truth's +-0.3 (4.1x the noise); chosen together, at +-0.300
+    and 0.06668 units/s, at the noise (19 s). ``fitter`` holds the best fit (``problem_``,
+    ``theta_``, ``result_``); returns its rate."""
     records = [r for r in records if r.y is not None and r.u.size > 10]
     order = max(s.order for s in (fitter.structures or STRUCTURES))
-    probs, fits, rows = _rate_fits(fitter, records, fitter.max_degree, fitter.delay, order, n_starts=3)
+    probs, fits, rows = _rate_fits(fitter, records, fitter.max_degree, fitter.delay, order, joint_starts=1)
     i = int(np.argmin([r["aic"] for r in rows]))
     _keep(fitter, probs[i], fits[i][0], rows)
     return probs[i].rate(fits[i][0])
 
 
-def _rate_fits(fitter: WholeModelFit, records, degree: int, with_delay: bool, max_order: int, n_starts: int = 1):
+def _joint_combos(fitter: WholeModelFit, records, kind: str, ref, degree: int, with_delay: bool, rates) -> list:
+    """``(carried, borders, log rate)`` over the border grid, the rates and both memories, best
+    first, each scored on structure ``ref``'s default G."""
+    combos = []
+    for carried in (False, True):
+        prob = _Problem(records, kind, ref, degree, with_delay, True, carried=carried)
+        for grid in WholeModelFit(fitter.max_degree, [ref], with_delay, (kind,)).grid(records, ref):
+            for r in rates:
+                t = np.concatenate([grid[:prob.rate_at], [r], grid[prob.rate_at:]])
+                combos.append((float(np.sum(prob.residual(t) ** 2)), carried, grid[:3], r))
+    combos.sort(key=lambda c: c[0])
+    return [c[1:] for c in combos]
+
+
+def _rate_fits(fitter: WholeModelFit, records, degree: int, with_delay: bool, max_order: int, joint_starts: int = 0):
     """Each type and structure (of order up to ``max_order``) with the rate fitted, from the border
     grid at the best of ``RATE_POINTS`` rates and of the actuator's two memories (reset to each
-    record's first input, or carried over from the record before: :attr:`_Problem.carried`), all
-    descended: ``(problems, fits, table rows)``.
+    record's first input, or carried over from the record before: :attr:`_Problem.carried`), and
+    from the ``joint_starts`` best borders, rates and memories chosen together
+    (:func:`_joint_combos`); every start descended, each type and structure kept by its best:
+    ``(problems, fits, table rows)``.
 
     A slow actuator's memory decides its fit: the test rig that crosses [-1, 1] in 15 s with its
     position carried from call to call, fitted as reset, ended at 0.26 units/s (the truth 0.133)
     and 13x the noise; a slow actuator its driver resets was found either way."""
     _, dt, width = _extent(records)
     rates = np.log(np.geomspace(width / 120.0, width / (10 * dt), RATE_POINTS))
+    structures = [s for s in (fitter.structures or STRUCTURES) if s.order <= max_order]
     probs, starts = [], []
     for kind in fitter.types:
-        for s in (fitter.structures or STRUCTURES):
-            if s.order > max_order:
-                continue
-            fit = WholeModelFit(fitter.max_degree, [s], with_delay, (kind,))
-            # the borders chosen without the rate, or (with several starts) with each rate
-            grids = fit.grid(records, s) if n_starts > 1 else [fit._start(records, kind, s, None)]
+        # borders, rate and memory chosen together on the first structure's default G (the borders
+        # the grid prefers without the rate can be those of the wrong actuator): the best
+        # ``joint`` of them start every structure too
+        joint = _joint_combos(fitter, records, kind, structures[0], degree, with_delay, rates)[:joint_starts] \
+            if joint_starts else []
+        for s in structures:
+            grid = WholeModelFit(fitter.max_degree, [s], with_delay, (kind,))._start(records, kind, s, None)
             trials = []
             for carried in (False, True):
                 prob = _Problem(records, kind, s, degree, with_delay, True, carried=carried)
                 k = prob.rate_at
-                for grid in grids:
-                    for r in rates:
-                        t = np.concatenate([grid[:k], [r], grid[k:]])
-                        trials.append((float(np.sum(prob.residual(t) ** 2)), prob, t))
-            trials.sort(key=lambda c: c[0])
-            for _, prob, t in trials[:n_starts]:
+                for r in rates:
+                    t = np.concatenate([grid[:k], [r], grid[k:]])
+                    trials.append((float(np.sum(prob.residual(t) ** 2)), prob, t))
+            _, prob, t = min(trials, key=lambda c: c[0])
+            probs.append(prob)
+            starts.append(_best_states(prob, t))
+            for carried, borders, r in joint:
+                prob = _Problem(records, kind, s, degree, with_delay, True, carried=carried)
+                t = np.concatenate([borders, grid[3:prob.rate_at], [r], grid[prob.rate_at:]])
                 probs.append(prob)
                 starts.append(_best_states(prob, t))
     fits = _descend(probs, starts, fitter.max_nfev)
-    if n_starts > 1:        # each type and structure by its best descent
+    if joint_starts:        # each type and structure by its best descent
         best: dict = {}
         for p, fit in zip(probs, fits):
             key = (p.type, str(p.structure))
