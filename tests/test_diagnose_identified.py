@@ -140,7 +140,7 @@ def test_a_stage_1_that_did_not_identify_f_never_drives_the_plant(tmp_path):
     from types import SimpleNamespace
 
     from hwid import HwidError
-    from hwid.identify.linear import input_span, run_sines, unsafe_precompensator
+    from hwid.identify.sine_runs import input_span, run_sines, unsafe_precompensator
     from hwid.model import InputNonlinearity
     lv = [-1.5, -0.5, 0.5, 1.5]
     d = {"name": "x", "seed": 1, "sampling": {"dt": 0.02},

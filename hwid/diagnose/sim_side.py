@@ -60,7 +60,8 @@ def identified_model(cfg, plant, out_dir=None, echo=print) -> tuple[HWModel, dic
     """Identify the model from ``plant`` with the config's staircases and sines (both stages); the
     results go to ``out_dir`` as ``nonlinear.h5`` and ``linear.h5``. The origin dict carries the
     identification's records (``records``), which the diagnosis uses and then drops."""
-    from hwid.identify.linear import identify_linear, run_sines, unsafe_precompensator
+    from hwid.identify.linear import identify_linear
+    from hwid.identify.sine_runs import run_sines, unsafe_precompensator
     from hwid.identify.nonlinear import identify_nonlinear
     if cfg.protocols.staircase is None or cfg.protocols.sine is None:
         raise HwidError(f"{cfg.source_path}: without --model, diagnose identifies the model first and "

@@ -27,7 +27,6 @@ mean ``s_0`` carries no information about G and is left out of both estimators a
 from __future__ import annotations
 
 import warnings
-from functools import lru_cache
 from typing import Optional
 
 import numpy as np
@@ -41,6 +40,7 @@ from hwid.identify.harmonics import (DistortedHarmonics, HarmonicFit, HarmonicMo
                                      fit_harmonics, period_sums, span_projector)
 from hwid.identify.lm import lm
 from hwid.identify.result import LinearResult
+from hwid.identify.sine_runs import run_sines
 
 
 @njit(cache=True)
@@ -600,85 +600,6 @@ def estimate_response(records, sines, nonlinear, cfg=None, estimator: LinearEsti
     return LinearResult(w, float(sines[0].amplitude), gain, gain_ci, phase, phase_ci, cov, est0.method,
                         np.array([e.crlb_[0] for e in ests]), np.array([e.crlb_[1] for e in ests]), par,
                         tuple(harm), np.array([e.extrapolated_ for e in ests]), tuple(warns), precompensator)
-
-
-@lru_cache(maxsize=2)
-def _sines(amplitude: float, frequencies: tuple, periods: int, lead_in_periods: int, dt: float) -> tuple:
-    """:func:`hwid.protocols.sines` of a config, computed once per process (a Monte Carlo batch
-    runs the same sines every run: 6e6 samples of eq. 15 for the paper config); read only."""
-    from hwid import protocols
-    out = tuple(protocols.sine(amplitude, w, periods, lead_in_periods, dt, name=f"sine_{i}")
-                for i, w in enumerate(frequencies))
-    for s in out:
-        s.t.flags.writeable = False
-        s.z.flags.writeable = False
-    return out
-
-
-def input_span(cfg, amplitude: float) -> tuple[float, float]:
-    """The inputs a pre-compensated sine may ask of the plant: the staircases' range (the inputs
-    stage 1 was identified on) widened by its width on either side, which holds any pre-compensator
-    of a play and slopes stage 1 can estimate from those levels; without staircases, the sine's own
-    range widened likewise."""
-    st = cfg.protocols.staircase
-    levels = list(st.levels_up) + list(st.levels_down) if st is not None else [-amplitude, amplitude]
-    lo, hi = float(min(levels)), float(max(levels))
-    return lo - (hi - lo), hi + (hi - lo)
-
-
-def unsafe_precompensator(cfg, nonlinear) -> str:
-    """Why the pre-compensator built from stage 1's ``nonlinear`` must not drive the plant, or ``""``:
-    on some sine of ``cfg`` it asks for inputs that are not finite or lie beyond
-    :func:`input_span`. A stage 1 that did not identify F (levels that never settled under a slow
-    actuator gave S^d = 5e21) builds one that would command the rig 1e21 units."""
-    if cfg.protocols.sine is None or nonlinear is None:
-        return ""
-    sn = cfg.protocols.sine
-    lo, hi = input_span(cfg, float(sn.amplitude))
-    F = nonlinear.input_nonlinearity()
-    for s in _sines(float(sn.amplitude), tuple(float(w) for w in sn.frequencies), int(sn.periods),
-                    int(sn.lead_in_periods), float(cfg.sampling.dt)):
-        with np.errstate(all="ignore"):
-            u = F.precompensator(s.z, cfg.identification.linear.precompensator)
-        if not (np.all(np.isfinite(u)) and lo <= u.min() and u.max() <= hi):
-            return (f"the pre-compensator built from stage 1 (S^d = {nonlinear.slope_down:.3g}, d+ = "
-                    f"{nonlinear.d_plus:.3g}, d- = {nonlinear.d_minus:.3g}) asks the plant for inputs "
-                    f"{np.nanmin(u):.3g} to {np.nanmax(u):.3g} on {s.name}, beyond [{lo:.3g}, {hi:.3g}]")
-    return ""
-
-
-def run_sines(cfg, nonlinear, plant=None, journal_dir=None, progress: bool | None = None):
-    """Drive the plant with each sine of ``cfg`` through the pre-compensator built from ``nonlinear``
-    (Fig. 8); return ``(sines, records)``. ``nonlinear=None``: the sines themselves, with no
-    pre-compensator (the whole-model fit's records where stage 1 is unusable). A pre-compensator
-    that would drive the plant beyond :func:`input_span` raises :class:`HwidError` before any sine
-    runs (:func:`unsafe_precompensator`)."""
-    from hwid.plant import make_plant
-    from hwid.progress import Progress
-    if cfg.protocols.sine is None:
-        raise HwidError(f"{cfg.source_path}: protocols.sine is missing; stage 2 needs the sine experiments")
-    why = unsafe_precompensator(cfg, nonlinear)
-    if why:
-        raise HwidError(f"{why}: stage 1 did not identify F (see its warnings); the plant is not driven with it")
-    sn = cfg.protocols.sine
-    sines = list(_sines(float(sn.amplitude), tuple(float(w) for w in sn.frequencies), int(sn.periods),
-                        int(sn.lead_in_periods), float(cfg.sampling.dt)))
-    plant = plant if plant is not None else make_plant(cfg, journal_dir=journal_dir)
-    kind = cfg.identification.linear.precompensator
-    records = []
-    with Progress(sum(s.z.size for s in sines), "identify-linear", "samples", enabled=progress) as bar:
-        for s in sines:
-            if nonlinear is None:
-                u, how = np.array(s.z, float), "none"
-            else:
-                u, how = nonlinear.input_nonlinearity().precompensator(s.z, kind), "estimated"
-            r = plant.run(s.name, u, z=s.z)
-            r.attrs.update({"omega": s.omega, "amplitude": s.amplitude, "periods": s.periods,
-                            "lead_in_periods": s.lead_in_periods, "precompensator": how,
-                            "precompensator_kind": kind})
-            records.append(r)
-            bar.update(s.z.size)
-    return sines, records
 
 
 def identify_linear(cfg, nonlinear, plant=None, journal_dir=None, progress: bool | None = None):
