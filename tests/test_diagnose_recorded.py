@@ -252,6 +252,24 @@ def test_paired_test_groups_only_what_the_noise_hides():
     assert [g["effects"] for g in groups] == [["a", "b"]]
 
 
+def test_of_explanations_the_data_cannot_tell_apart_the_one_with_fewer_parameters_is_named():
+    """A third-order delay, identified, came out as a well-damped resonance (two parameters) in one
+    group with time_delay (one) and sensor_lag (two): the delay is named, the others listed; a drift
+    neither gives way nor is given way to; a verdict outside any group stands."""
+    from hwid.diagnose.verdict import simplest_in_group
+
+    def cand(name, k):
+        return Candidate(name, "linear", {}, 0.01, 0.01, 0.5, 20.0, float(k))
+    reso, delay, lag, drift = cand("resonance", 2), cand("time_delay", 1), cand("sensor_lag", 2), cand("drift", 0.5)
+    groups = [{"effects": ["resonance", "time_delay", "sensor_lag"]}]
+    assert simplest_in_group(reso, groups, [reso, delay, lag]) is delay
+    assert simplest_in_group(lag, [{"effects": ["sensor_lag", "resonance"]}], [lag, reso]) is lag   # a tie: rank
+    assert simplest_in_group(reso, [{"effects": ["resonance", "drift"]}], [reso, drift]) is reso
+    assert simplest_in_group(drift, [{"effects": ["drift", "time_delay"]}], [drift, delay]) is drift
+    assert simplest_in_group(reso, [], [reso, delay]) is reso
+    assert simplest_in_group("unexplained", groups, [reso]) == "unexplained"
+
+
 def test_report_says_how_the_log_was_used(rate_log):
     from hwid.report.html import write_report
     _, tmp = rate_log

@@ -20,7 +20,8 @@ from hwid.diagnose.log_drift import (drift_from_residual, drift_leaves_little, d
 from hwid.diagnose.modelsim import ModelSim
 from hwid.diagnose.result import DiagnosisResult
 from hwid.diagnose.sim_side import load_model
-from hwid.diagnose.verdict import Candidate, alternative_baseline, eligible, indistinguishable, refloor
+from hwid.diagnose.verdict import (Candidate, alternative_baseline, eligible, indistinguishable, refloor,
+                                    simplest_in_group)
 from hwid.diagnose.verdict import verdict as decide_verdict
 from hwid.plant import make_plant
 from hwid.results import write_diagnosis, write_json
@@ -280,6 +281,11 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
         verdict = _unless_generalising(verdict, id_err, val, leaves_noise, echo)
     groups = indistinguishable(cands, val.y_val, val.m_val, floor.sigma, floor.kappa, drift_ok,
                                leaves_noise=leaves_noise, max_left=max_left, partial=partial) if test.significant else []
+    simplest = simplest_in_group(verdict, groups, cands)
+    if simplest is not verdict:
+        echo(f"{verdict.effect} and {simplest.effect} fit the validation data alike: the one with fewer "
+             f"parameters, {simplest.effect}, is named")
+        verdict = simplest
     cost = {**cost, "seconds_analysis": time.perf_counter() - t0}
     result = _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, test, additive, drift_ok,
                      fitter, id_err, by_effect, sim_model, origin, cost, groups)
