@@ -55,11 +55,12 @@ def fit_rate_first(fitter: WholeModelFit, records) -> float:
     structure of ``fitter`` at h_bar's highest degree, as in :func:`fit_rate_added` but without the
     search over fits without a rate first (most of the whole fit's time: on a third-order rig
     slewing at 0.059 units/s that search took 108 s and ended at 3.9x the noise; this fit took 11 s
-    and found 0.0596). The borders, the rate and the actuator's memory are chosen together on the
-    border grid, and each structure descends from the two best: chosen per structure from the
-    grid's borders without the rate, a judged third-order rig slewing at 0.0667 units/s came out
-    with borders at -2.2 and -2.7 for the truth's +-0.3 (4.1x the noise); chosen together, at +-0.300
-    and 0.06668 units/s, at the noise (19 s). ``fitter`` holds the best fit (``problem_``,
+    and found 0.0596). Each structure descends from two starts: the grid's borders chosen without
+    the rate (at the best rate and memory), and the borders, rate and memory chosen together on the
+    border grid (:func:`_joint_combos`). From the first alone, a judged third-order rig slewing at
+    0.0667 units/s came out with borders at -2.2 and -2.7 for the truth's +-0.3 (4.1x the noise);
+    from the second, at +-0.300 and 0.06668 units/s, at the noise (19-22 s); the first is the one
+    that finds a test's 0.06 units/s on two records of levels. ``fitter`` holds the best fit (``problem_``,
     ``theta_``, ``result_``); returns its rate."""
     records = [r for r in records if r.y is not None and r.u.size > 10]
     order = max(s.order for s in (fitter.structures or STRUCTURES))
