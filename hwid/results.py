@@ -296,7 +296,7 @@ def open_results(path: str | Path, kind: str | tuple[str, ...], cfg=None) -> h5p
         if fmt != FORMAT:
             raise ResultsError(f"{path}: written with results format {fmt}, this hwid reads format {FORMAT}")
         if got not in kinds:
-            raise ResultsError(f"{path}: is a '{got}' file, expected {' or '.join(repr(k) for k in kinds)}")
+            raise ResultsError(f"{path}: is a {got!r} file, expected {' or '.join(repr(k) for k in kinds)}")
         if isinstance(stored_hash, bytes):
             stored_hash = stored_hash.decode(errors="replace")
         if cfg is not None and stored_hash is not None and (not isinstance(stored_hash, str) or stored_hash != cfg.sha256):
