@@ -36,6 +36,36 @@ def input_span(cfg, amplitude: float) -> tuple[float, float]:
     return lo - (hi - lo), hi + (hi - lo)
 
 
+def _config_sines(cfg) -> list:
+    """The sines of ``cfg.protocols.sine`` (:func:`_sines`)."""
+    sn = cfg.protocols.sine
+    return list(_sines(float(sn.amplitude), tuple(float(w) for w in sn.frequencies), int(sn.periods),
+                       int(sn.lead_in_periods), float(cfg.sampling.dt)))
+
+
+def _inputs(cfg, nonlinear, sines) -> list[np.ndarray]:
+    """Each sine's input to the plant: through the pre-compensator built from ``nonlinear``, or the
+    sine itself where ``nonlinear`` is None."""
+    if nonlinear is None:
+        return [np.array(s.z, float) for s in sines]
+    F, kind = nonlinear.input_nonlinearity(), cfg.identification.linear.precompensator
+    with np.errstate(all="ignore"):
+        return [F.precompensator(s.z, kind) for s in sines]
+
+
+def _why_unsafe(cfg, nonlinear, sines, inputs) -> str:
+    """:func:`unsafe_precompensator` of the ``inputs`` already built for ``sines``."""
+    if nonlinear is None:
+        return ""
+    lo, hi = input_span(cfg, float(cfg.protocols.sine.amplitude))
+    for s, u in zip(sines, inputs):
+        if not (np.all(np.isfinite(u)) and lo <= u.min() and u.max() <= hi):
+            return (f"the pre-compensator built from stage 1 (S^d = {nonlinear.slope_down:.3g}, d+ = "
+                    f"{nonlinear.d_plus:.3g}, d- = {nonlinear.d_minus:.3g}) asks the plant for inputs "
+                    f"{np.nanmin(u):.3g} to {np.nanmax(u):.3g} on {s.name}, beyond [{lo:.3g}, {hi:.3g}]")
+    return ""
+
+
 def unsafe_precompensator(cfg, nonlinear) -> str:
     """Why the pre-compensator built from stage 1's ``nonlinear`` must not drive the plant, or ``""``:
     on some sine of ``cfg`` it asks for inputs that are not finite or lie beyond
@@ -43,18 +73,8 @@ def unsafe_precompensator(cfg, nonlinear) -> str:
     actuator gave S^d = 5e21) builds one that would command the rig 1e21 units."""
     if cfg.protocols.sine is None or nonlinear is None:
         return ""
-    sn = cfg.protocols.sine
-    lo, hi = input_span(cfg, float(sn.amplitude))
-    F = nonlinear.input_nonlinearity()
-    for s in _sines(float(sn.amplitude), tuple(float(w) for w in sn.frequencies), int(sn.periods),
-                    int(sn.lead_in_periods), float(cfg.sampling.dt)):
-        with np.errstate(all="ignore"):
-            u = F.precompensator(s.z, cfg.identification.linear.precompensator)
-        if not (np.all(np.isfinite(u)) and lo <= u.min() and u.max() <= hi):
-            return (f"the pre-compensator built from stage 1 (S^d = {nonlinear.slope_down:.3g}, d+ = "
-                    f"{nonlinear.d_plus:.3g}, d- = {nonlinear.d_minus:.3g}) asks the plant for inputs "
-                    f"{np.nanmin(u):.3g} to {np.nanmax(u):.3g} on {s.name}, beyond [{lo:.3g}, {hi:.3g}]")
-    return ""
+    sines = _config_sines(cfg)
+    return _why_unsafe(cfg, nonlinear, sines, _inputs(cfg, nonlinear, sines))
 
 
 def run_sines(cfg, nonlinear, plant=None, journal_dir=None, progress: bool | None = None):
@@ -67,25 +87,20 @@ def run_sines(cfg, nonlinear, plant=None, journal_dir=None, progress: bool | Non
     from hwid.progress import Progress
     if cfg.protocols.sine is None:
         raise HwidError(f"{cfg.source_path}: protocols.sine is missing; stage 2 needs the sine experiments")
-    why = unsafe_precompensator(cfg, nonlinear)
+    sines = _config_sines(cfg)
+    inputs = _inputs(cfg, nonlinear, sines)
+    why = _why_unsafe(cfg, nonlinear, sines, inputs)
     if why:
         raise HwidError(f"{why}: stage 1 did not identify F (see its warnings); the plant is not driven with it")
-    sn = cfg.protocols.sine
-    sines = list(_sines(float(sn.amplitude), tuple(float(w) for w in sn.frequencies), int(sn.periods),
-                        int(sn.lead_in_periods), float(cfg.sampling.dt)))
     plant = plant if plant is not None else make_plant(cfg, journal_dir=journal_dir)
-    kind = cfg.identification.linear.precompensator
+    how = "none" if nonlinear is None else "estimated"
     records = []
     with Progress(sum(s.z.size for s in sines), "identify-linear", "samples", enabled=progress) as bar:
-        for s in sines:
-            if nonlinear is None:
-                u, how = np.array(s.z, float), "none"
-            else:
-                u, how = nonlinear.input_nonlinearity().precompensator(s.z, kind), "estimated"
+        for s, u in zip(sines, inputs):
             r = plant.run(s.name, u, z=s.z)
             r.attrs.update({"omega": s.omega, "amplitude": s.amplitude, "periods": s.periods,
                             "lead_in_periods": s.lead_in_periods, "precompensator": how,
-                            "precompensator_kind": kind})
+                            "precompensator_kind": cfg.identification.linear.precompensator})
             records.append(r)
             bar.update(s.z.size)
     return sines, records

@@ -394,17 +394,10 @@ class WholeModelFit:
         """Outer start values: from ``start`` where given, else from ``borders`` (G at its default
         start), else the best of a coarse border grid (h_bar of the highest degree solved for, G at
         its default start)."""
-        span = max(r.u.size * r.dt for r in records)
-        dt = records[0].dt
-        g_p = g_params_from(structure, None if start is None else start.linear, span, dt)
-        extra = [0.0] if self.delay else []
-        states = []
-        for r in records:
-            states += [0.0, float(np.median(r.u[: max(3, r.u.size // 50)]))]
         if start is not None:
             f = start.input
             return np.array([f.d_plus, np.log(f.slope_down), np.log(max(f.d_plus - f.d_minus, 1e-6)),
-                             *g_p, *extra, *states], float)
+                             *self._rest(records, structure, start.linear)], float)
         prob = _Problem(records, kind, structure, self.max_degree, self.delay)
         grid = self.grid(records, structure)
         if borders is not None:
@@ -412,20 +405,24 @@ class WholeModelFit:
             # be far off while fitting those levels exactly, and the moving records then say so
             f = borders
             grid.insert(0, np.array([f.d_plus, np.log(f.slope_down), np.log(max(f.d_plus - f.d_minus, 1e-6)),
-                                     *g_p, *extra, *states], float))
+                                     *self._rest(records, structure)], float))
         costs = [float(np.sum(prob.residual(t) ** 2)) for t in grid]
         return grid[int(np.argmin(costs))]
 
     def grid(self, records, structure) -> list[np.ndarray]:
         """The coarse border grid's outer starts (:func:`border_grid`; G at its default start, each
         record's gear mid-play and G at rest at its first inputs)."""
+        rest = self._rest(records, structure)
+        return [np.array([d_plus, 0.0, log_gap, *rest]) for d_plus, log_gap in border_grid(records)]
+
+    def _rest(self, records, structure, linear=None) -> list[float]:
+        """The outer start values after F's three: G's (from ``linear``, else its default), the
+        delay's, and each record's gear mid-play with G at rest at its first inputs."""
         span = max(r.u.size * r.dt for r in records)
-        g_p = g_params_from(structure, None, span, records[0].dt)
-        extra = [0.0] if self.delay else []
-        states = []
+        out = list(g_params_from(structure, linear, span, records[0].dt)) + ([0.0] if self.delay else [])
         for r in records:
-            states += [0.0, float(np.median(r.u[: max(3, r.u.size // 50)]))]
-        return [np.array([d_plus, 0.0, log_gap, *g_p, *extra, *states]) for d_plus, log_gap in border_grid(records)]
+            out += [0.0, float(np.median(r.u[: max(3, r.u.size // 50)]))]
+        return out
 
     def hold(self, prob: _Problem, theta, table, note: str = "") -> None:
         """Make the fit ``theta`` of ``prob`` the selected one (``problem_``, ``theta_``, ``result_``

@@ -74,9 +74,10 @@ def _joint_combos(fitter: WholeModelFit, records, kind: str, ref, degree: int, w
     """``(carried, borders, log rate)`` over the border grid, the rates and both memories, best
     first, each scored on structure ``ref``'s default G."""
     combos = []
+    grids = WholeModelFit(fitter.max_degree, [ref], with_delay, (kind,)).grid(records, ref)
     for carried in (False, True):
         prob = _Problem(records, kind, ref, degree, with_delay, True, carried=carried)
-        for grid in WholeModelFit(fitter.max_degree, [ref], with_delay, (kind,)).grid(records, ref):
+        for grid in grids:
             for r in rates:
                 t = np.concatenate([grid[:prob.rate_at], [r], grid[prob.rate_at:]])
                 combos.append((float(np.sum(prob.residual(t) ** 2)), carried, grid[:3], r))
