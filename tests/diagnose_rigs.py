@@ -296,3 +296,25 @@ def paper_at_rest(u, dt):
     r.gear = float(u[0] + 0.5 * r.rng.choice([-1.0, 1.0]))
     r.state = None
     return r.paper(u, dt) + r.noise(u.size)
+
+
+def clip_between_lags(u, dt):
+    """The paper's plant with its G split into its two lags, ``1/(2s+1)`` then ``2/(5s+1)``, and a
+    clip at +-0.5 between them (a current limit inside a motor's drive, say): no catalogue effect,
+    and at rest the same as a bend of the borders. State carried over."""
+    if "clip_between_lags" not in _RIGS:
+        r = _RIGS["clip_between_lags"] = _PaperRig(zlib.crc32(b"clip_between_lags"))
+        r.lags = None
+    r = _RIGS["clip_between_lags"]
+    u = np.asarray(u, float)
+    v = r.gear_out(u, 0.5)
+    a1, a2 = np.exp(-dt / 2.0), np.exp(-dt / 5.0)
+    x1, x2 = r.lags if r.lags is not None else (v[0], 2.0 * float(np.clip(v[0], -0.5, 0.5)))
+    w = np.empty_like(v)
+    for i, vi in enumerate(v):
+        w[i] = x2
+        c = min(max(x1, -0.5), 0.5)
+        x1 = a1 * x1 + (1 - a1) * vi
+        x2 = a2 * x2 + (1 - a2) * 2.0 * c
+    r.lags = (x1, x2)
+    return 0.25 * w - 0.42 * w ** 3 + 0.2 * w ** 5 + r.noise(u.size)

@@ -19,7 +19,7 @@ import yaml
 
 from hwid import config
 from hwid.cli import main
-from hwid.diagnose import CATALOGUE, diagnose
+from hwid.diagnose import CATALOGUE, confirm, diagnose
 from hwid.report.figures import plot_ranking, plot_residual_map
 from hwid.results import read_diagnosis
 
@@ -512,6 +512,26 @@ def test_input_clip_on_the_paper_plant_found_by_the_profile_scan(tmp_path):
     assert s["gap_before"] > 100 * s["noise_floor"]
     assert s["gap_after"] < 1.1 * s["noise_floor"]
 
+
+
+def test_a_clip_between_the_lags_of_g_is_unexplained_though_a_static_clip_matches_at_rest(tmp_path):
+    """The paper's plant with a clip at +-0.5 between G's two lags, the paper's plant as
+    ``--model``. At rest a clip of the input does the same, and fitted so it takes the gap from
+    400x the floor to within 10 % of it; but the broadband multisine's fast swings stay below the
+    clip inside G, and the input clip makes that experiment worse than the model without it. The
+    confirmation (:mod:`hwid.diagnose.confirm`) finds that, and the verdict is `unexplained`."""
+    s = _diagnose_paper_rig(tmp_path, "clip_between_lags")
+    top = s["candidates"][0]
+    assert top["effect"] in ("input_saturation", "curved_borders")
+    assert top["explained_fraction"] > 0.99 and top["gap_after"] < 1.2 * s["noise_floor"]
+    c = s["confirmation"]
+    assert c["contradicted"] and c["effect"] == top["effect"]
+    assert c["experiment"].startswith("broadband_validation")
+    assert (c["z_rerun"] if c["runs"] else c["z"]) >= confirm.Z_RERUN
+    assert (c["excess_rerun"] if c["runs"] else c["excess"]) >= confirm.EXCESS_MIN
+    assert s["verdict"]["effect"] == "unexplained" and "stands in" in s["verdict"]["why"]
+    assert s["gap_after"] == s["gap_before"] > 100 * s["noise_floor"]
+    assert s["residual_structure"]
 
 
 def test_paper_plant_parked_between_calls_is_none(tmp_path):

@@ -202,11 +202,11 @@ def _z_sweep(d: Design, a: float) -> np.ndarray:
     return np.concatenate([np.full(k, a), np.linspace(a, -a, k)])
 
 
-def _sine_exp(d: Design, F, name, role, amp, omega, seed_phase=0.0) -> Experiment:
+def _sine_exp(d: Design, F, name, role, amp, omega, seed_phase=0.0, times: int = 1) -> Experiment:
     dt = d.dt
     period = 2 * np.pi / omega
     n_lead = _n(max(d.lead_hold_s, period), dt)
-    n_body = _n(max(2 * period, d.settle_s), dt)
+    n_body = times * _n(max(2 * period, d.settle_s), dt)
     t = np.arange(n_lead + n_body) * dt
     z = amp * np.sin(omega * t + seed_phase)
     # the pre-compensator is applied to the whole record, after a sweep from one end to the other
@@ -339,6 +339,18 @@ def design(cfg, model: HWModel, d: Design | None = None) -> list[Experiment]:
     for e in exps:
         e.region = regions(e.u, e.mask, d, e.z)
     return exps
+
+
+def again(d: Design, model: HWModel, e: Experiment, times: int) -> list[Experiment]:
+    """Validation experiment ``e`` run again for ``times`` its scored length
+    (:func:`hwid.diagnose.confirm.check`): a sine as one experiment with its lead-in and ``times``
+    as many periods; any other experiment ``times`` times over, each with its lead-in."""
+    if e.kind == "sine":
+        x = _sine_exp(d, model.input, f"{e.name}.again_x{times}", "validation", e.variable["amplitude"],
+                      e.variable["omega"], times=times)
+        return [x]
+    return [Experiment(f"{e.name}.again{k}", e.kind, "validation", e.u.copy(), e.mask.copy(),
+                       None if e.z is None else e.z.copy(), dict(e.variable)) for k in range(1, times + 1)]
 
 
 def regions(u, mask, d: Design, z=None) -> np.ndarray:

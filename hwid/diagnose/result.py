@@ -17,7 +17,9 @@ class DiagnosisResult:
     validation data equally well within the noise (``verdict.indistinguishable_from`` lists the
     verdict's fellows); ``next_experiment``: for a recorded plant, the input that would separate the
     leading group on the live rig; ``data``: for a recorded plant, how the records were split and
-    where the noise floor came from."""
+    where the noise floor came from; ``confirmation``: with a given model, whether the verdict makes any
+    experiment worse than the model without it (:mod:`hwid.diagnose.confirm`; ``None``: nothing to
+    check)."""
 
     verdict: dict
     gap_before: float
@@ -36,6 +38,7 @@ class DiagnosisResult:
     indistinguishable: list = ()
     next_experiment: dict | None = None
     data: dict | None = None
+    confirmation: dict | None = None
 
     def to_dict(self) -> dict:
         return {"verdict": self.verdict, "gap_before": self.gap_before, "gap_after": self.gap_after,
@@ -44,4 +47,5 @@ class DiagnosisResult:
                 "test": self.test, "noise": self.noise, "model": self.model, "design": self.design,
                 "cost": self.cost, "residual_structure": self.residual_structure,
                 "indistinguishable": list(self.indistinguishable), "next_experiment": self.next_experiment,
+                "confirmation": self.confirmation,
                 **({"data": self.data} if self.data is not None else {})}

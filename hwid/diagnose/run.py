@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from hwid import HwidError, protocols
-from hwid.diagnose import experiments, gap, rank, residual_structure
+from hwid.diagnose import confirm, experiments, gap, rank, residual_structure
 from hwid.diagnose.baseline import has_outside_modes
 from hwid.diagnose.effects import BLOCK, CATALOGUE, Scale, catalogue
 from hwid.diagnose.log_drift import (drift_from_residual, drift_leaves_little, drift_takes_the_excess,
@@ -146,7 +146,16 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
             "rig_seconds_validation": val.rig_seconds,
             "rig_seconds_identification": _identification_rig_seconds(cfg, origin),
             "seconds_model": seconds_model, "seconds_rig_validation": val.seconds_rig}
-    return conclude(cfg, out, json_path, val, floor, additive, sim_model, origin, effects, cost, t_start, echo)
+
+    def rerun(index: int, times: int) -> list:
+        e = val.exps[index]
+        if e.kind != "sine":
+            times = min(times, confirm.MAX_RUNS)
+        return [(x.u, plant.run(x.name, x.u, z=x.z).y, x.mask)
+                for x in experiments.again(val.design, sim_model, e, times)]
+
+    return conclude(cfg, out, json_path, val, floor, additive, sim_model, origin, effects, cost, t_start, echo,
+                    rerun=rerun)
 
 
 def repairs_out_of_sample(verdict, leaves_noise, structure=None, own_gap: float = 0.0) -> bool:
@@ -211,7 +220,7 @@ def drift_additivity(pairs, design, sigma: float) -> dict:
 
 def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, sim_model, origin: dict, effects,
              cost: dict, t_start: float, echo, extra=None, band=None, from_logs: bool = False,
-             wander=None) -> dict:
+             wander=None, rerun=None) -> dict:
     """From the experiments on the plant and their noise floor to the written result: the gap test,
     every effect fitted and scored, the verdict and where the gap lies; ``band``: the frequencies
     that identified G, whose lightly damped modes are the plant's own (default the config's sine
@@ -222,7 +231,9 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
     (:func:`drift_from_residual`); ``wander(outputs)``: how far the plant's holds wander from the
     validation outputs of a model (a log's, :func:`repeats_under_best`); ``extra(fitter, cands,
     verdict, summary)`` adds what a caller knows beyond that (a recorded plant's data split and next
-    experiment). Writes ``diagnosis.h5`` and the JSON; returns the summary."""
+    experiment); ``rerun(index, runs)``: the live plant's records of validation experiment ``index``
+    run again (:func:`hwid.diagnose.confirm.check`). Writes ``diagnosis.h5`` and the JSON; returns
+    the summary."""
     identified = origin.get("source") == "identified"
     t0 = time.perf_counter()
     res_before = [y - x for y, x in zip(val.y_val, val.sim_val.x)]
@@ -286,9 +297,21 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
         echo(f"{verdict.effect} and {simplest.effect} fit the validation data alike: the one with fewer "
              f"parameters, {simplest.effect}, is named")
         verdict = simplest
+    confirmation = None
+    if not identified and isinstance(verdict, Candidate):
+        confirmation = confirm.check(verdict, fitter, val, floor.sigma, floor.kappa, rerun, echo)
+        if confirmation is not None and confirmation.contradicted:
+            why = confirmation.why
+            echo(why)
+            verdict = "unexplained"
+    if confirmation is not None:
+        cost = {**cost, "plant_calls_confirmation": confirmation.runs,
+                "rig_seconds_confirmation": confirmation.rig_seconds}
     cost = {**cost, "seconds_analysis": time.perf_counter() - t0}
     result = _result(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, test, additive, drift_ok,
                      fitter, id_err, by_effect, sim_model, origin, cost, groups)
+    if confirmation is not None:
+        result = dataclasses.replace(result, confirmation=confirmation.to_dict())
     summary = result.to_dict()
     if isinstance(verdict, Candidate):
         summary["test"]["after_verdict"] = test_of(verdict.gap_after).to_dict()

@@ -1,0 +1,145 @@
+"""The confirmation of a live diagnosis's verdict: the named effect must not make any experiment worse.
+
+An effect that is the cause of the gap brings the model closer to the plant on every experiment. One
+that only stands in for the cause removes the gap where it is largest and moves the model away from
+the plant where the two differ: a static bend of the borders fitted to a saturation between two lags
+of G takes a gap of 400x the floor down to 1.05-1.10x on the staircases, and makes the broadband
+multisine, whose fast swings the lag in front of the saturation keeps below it, worse than the model
+without any effect (its mean-square error up by 0.36 of the noise's, z = 4-6). A right name on the
+judged seeds' labelled diagnoses with a given model never added more than 0.011 of the noise power
+to any experiment.
+
+Per validation experiment, the paired test of :func:`hwid.diagnose.verdict.paired_z`, signed: ``z``
+is ``sum(e_with^2 - e_without^2)`` against its standard deviation when both predictions fit equally
+well, ``2 sigma sqrt(sum (p_with - p_without)^2) sqrt(kappa)``; ``excess`` is the same difference
+per scored sample in units of the noise power. An experiment contradicts the verdict when the
+excess is material (:data:`EXCESS_MIN`) and ``z`` reaches :data:`Z_WORSE` over the validation set
+(the largest of some twenty tests) or :data:`Z_RERUN` on a rerun of the one experiment chosen before
+it ran. Where the validation set leaves it open (``Z_LOOK <= z < Z_WORSE``), the live plant runs
+that experiment again for as many times its scored length as the worsening needs to reach
+``Z_AIM`` if it holds (at most :data:`MAX_TIMES`): a sine once, with its lead-in and that many
+more periods; any other experiment that many times (at most :data:`MAX_RUNS`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: smallest worsening that counts, in units of the noise power per scored sample
+EXCESS_MIN = 0.02
+#: z that contradicts the verdict on the validation experiments themselves
+Z_WORSE = 4.0
+#: z that contradicts it on reruns of one experiment chosen in advance
+Z_RERUN = 3.0
+#: z from which an experiment is run again
+Z_LOOK = 0.75
+#: the rerun is sized to reach this z where the worsening holds, up to this many times the
+#: experiment's scored length
+Z_AIM = 8.0
+MAX_TIMES = 24
+#: the most plant calls of a rerun of an experiment that is not a sine (each with its lead-in)
+MAX_RUNS = 12
+
+
+@dataclass(frozen=True)
+class Confirmation:
+    """What the check found: the experiment that argues most against the verdict, its signed ``z``
+    and ``excess`` (noise-power units) on the validation data and, where it was run again, on the
+    ``runs`` reruns alone; ``contradicted`` when either settles it."""
+
+    effect: str
+    experiment: str
+    z: float
+    excess: float
+    runs: int = 0                        # plant calls of the rerun
+    times: int = 0                       # its scored length, in multiples of the experiment's
+    z_rerun: float | None = None          # None: not run again
+    excess_rerun: float | None = None
+    rig_seconds: float = 0.0
+    contradicted: bool = False
+
+    def to_dict(self) -> dict:
+        return {"effect": self.effect, "experiment": self.experiment, "z": self.z, "excess": self.excess,
+                "runs": self.runs, "times": self.times, "z_rerun": self.z_rerun, "excess_rerun": self.excess_rerun,
+                "rig_seconds": self.rig_seconds, "contradicted": self.contradicted}
+
+    @property
+    def why(self) -> str:
+        if not self.contradicted:
+            return ""
+        on = (f"{self.experiment} run again for {self.times}x its length: z = {self.z_rerun:.1f}, "
+              f"{self.excess_rerun:+.3f} of the noise power" if self.runs else
+              f"{self.experiment}: z = {self.z:.1f}, {self.excess:+.3f} of the noise power")
+        return (f"{self.effect} removes the gap where it is largest but makes the model worse than without it "
+                f"on {on}: it stands in for an effect it is not, unexplained")
+
+
+def worsening(ys, with_effect, without, masks, sigma: float, kappa: float) -> list[tuple[float, float]]:
+    """``(z, excess)`` of each experiment (module docstring): positive where the effect makes the
+    model worse."""
+    out = []
+    for y, a, b, m in zip(ys, with_effect, without, masks):
+        m = np.asarray(m, bool)
+        n = int(m.sum())
+        if n == 0:
+            out.append((0.0, 0.0))
+            continue
+        y = np.asarray(y, float)[m]
+        ea, eb = y - np.asarray(a, float)[m], y - np.asarray(b, float)[m]
+        num = float(ea @ ea - eb @ eb)
+        d = (np.asarray(a, float) - np.asarray(b, float))[m]
+        spread = 2.0 * sigma * math.sqrt(float(d @ d)) * math.sqrt(max(kappa, 1.0))
+        out.append((num / spread if spread > 0 else 0.0, num / (n * sigma * sigma)))
+    return out
+
+
+def _pooled(pairs_n: list[tuple[float, float, float, int]]) -> tuple[float, float]:
+    """``(z, excess)`` of several runs together, from each run's ``(num, spread^2, n)``."""
+    num = sum(p[0] for p in pairs_n)
+    spread2 = sum(p[1] for p in pairs_n)
+    n = sum(p[2] for p in pairs_n)
+    return (num / math.sqrt(spread2) if spread2 > 0 else 0.0), num / max(n, 1)
+
+
+def check(verdict, fitter, val, sigma: float, kappa: float, rerun=None, echo=print) -> Confirmation | None:
+    """Whether the validation experiments contradict the verdict, and, where they leave it open, the
+    plant's own answer on the one experiment that argues most against it: ``rerun(index, times)``
+    runs validation experiment ``val.exps[index]`` again for ``times`` its scored length and returns
+    ``[(u, y, mask), ...]``. ``None`` where there is nothing to check (a drift predicts no new run;
+    no experiment is made worse by a material amount)."""
+    if verdict.effect == "drift" or not verdict.predictions:
+        return None
+    ws = worsening(val.y_val, verdict.predictions, val.sim_val.x, val.m_val, sigma, kappa)
+    material = [(z, d, j) for j, (z, d) in enumerate(ws) if d >= EXCESS_MIN]
+    if not material:
+        return None
+    z, d, j = max(material)
+    index = val.val_idx[j]
+    exp = val.exps[index]
+    found = Confirmation(verdict.effect, exp.name, float(z), float(d))
+    if z >= Z_WORSE:
+        return dataclasses.replace(found, contradicted=True)
+    if z < Z_LOOK or rerun is None:
+        return found
+    times = int(min(MAX_TIMES, max(2, math.ceil((Z_AIM / z) ** 2))))
+    echo(f"{verdict.effect} makes {exp.name} worse than the model without it (z = {z:.1f}, {d:+.3f} of the noise "
+         f"power): running it again for {times}x its length")
+    runs = rerun(index, times)
+    inputs = [np.asarray(u, float) for u, _, _ in runs]
+    with_effect = fitter.predict_on(verdict.fitted, verdict.theta, inputs)
+    without = fitter.predict_on(None, None, inputs)
+    parts = []
+    for (_, y, m), a, b in zip(runs, with_effect, without):
+        m = np.asarray(m, bool)
+        ea, eb = np.asarray(y, float)[m] - a[m], np.asarray(y, float)[m] - b[m]
+        dd = (a - b)[m]
+        parts.append((float(ea @ ea - eb @ eb), 4.0 * sigma ** 2 * float(dd @ dd) * max(kappa, 1.0), int(m.sum())))
+    z_r, num_per = _pooled(parts)
+    d_r = num_per / (sigma * sigma)
+    seconds = float(sum(u.size for u in inputs) * val.design.dt)
+    echo(f"  again: z = {z_r:.1f}, {d_r:+.3f} of the noise power ({seconds:.0f} rig-seconds)")
+    return dataclasses.replace(found, runs=len(runs), times=times, z_rerun=float(z_r), excess_rerun=float(d_r),
+                               rig_seconds=seconds, contradicted=bool(z_r >= Z_RERUN and d_r >= EXCESS_MIN))

@@ -1,0 +1,84 @@
+"""The confirmation of a verdict (:mod:`hwid.diagnose.confirm`) against numbers known exactly:
+white noise of known sigma, and predictions that differ from the truth by a known constant."""
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+
+from hwid.diagnose import confirm
+from hwid.diagnose.verdict import Candidate
+
+SIGMA = 0.01
+N = 4000
+
+
+def _noise(seed, n=N):
+    return np.random.default_rng(seed).normal(0.0, SIGMA, n)
+
+
+def test_worsening_matches_its_expectation():
+    """An effect whose prediction is off the truth by ``b`` adds ``b^2 / sigma^2`` of the noise
+    power, and its paired z is ``sqrt(n) b / (2 sigma)`` (kappa 1); the model without it is the
+    truth. The other way round, the effect is better and z is as negative."""
+    truth = np.sin(np.linspace(0, 20, N))
+    y = truth + _noise(1)
+    b = 0.004
+    m = np.ones(N, bool)
+    (z, d), = confirm.worsening([y], [truth + b], [truth], [m], SIGMA, 1.0)
+    assert abs(d - (b / SIGMA) ** 2) < 0.03              # 0.16, +-3 sigma of the noise's part is 0.027
+    assert abs(z - math.sqrt(N) * b / (2 * SIGMA)) < 3.5  # 12.6; the noise moves z by +-1
+    (z2, d2), = confirm.worsening([y], [truth], [truth + b], [m], SIGMA, 1.0)
+    assert z2 < -9 and d2 < -0.13
+
+
+def _case(offsets, plant_offset=0.0, seed=0):
+    """A verdict whose predictions are off by ``offsets[j]`` on validation experiment ``j`` (the model
+    without it is the truth), and a plant whose reruns of an experiment ``j`` are the truth moved by
+    ``plant_offset``."""
+    truth = np.sin(np.linspace(0, 20, N))
+    masks = [np.ones(N, bool) for _ in offsets]
+    exps = [SimpleNamespace(name=f"e{j}", u=np.full(N, float(j)), mask=masks[j]) for j in range(len(offsets))]
+    val = SimpleNamespace(y_val=[truth + _noise(seed + j) for j in range(len(offsets))],
+                          sim_val=SimpleNamespace(x=[truth for _ in offsets]), m_val=masks,
+                          val_idx=list(range(len(offsets))), exps=exps, design=SimpleNamespace(dt=0.05))
+    shift = {float(j): o for j, o in enumerate(offsets)}
+    fitter = SimpleNamespace(predict_on=lambda eff, theta, inputs: [truth + (shift[u[0]] if eff else 0.0)
+                                                                      for u in inputs])
+    cand = Candidate("input_saturation", "input", {}, 0.0, 0.0, 1.0, 1.0, 2.0,
+                     predictions=[truth + o for o in offsets], theta=np.zeros(2), fitted=object())
+    calls = []
+
+    def rerun(index, times):
+        calls.append((index, times))
+        return [(exps[index].u, truth + plant_offset + _noise(100 + k), masks[index]) for k in range(times)]
+
+    return cand, fitter, val, rerun, calls
+
+
+def test_a_verdict_that_fits_every_experiment_is_not_checked_further():
+    cand, fitter, val, rerun, calls = _case([0.0, 0.0005, 0.0])
+    c = confirm.check(cand, fitter, val, SIGMA, 1.0, rerun, echo=lambda *a: None)
+    assert (c is None or not c.contradicted) and not calls
+
+
+def test_an_experiment_made_much_worse_contradicts_without_a_rerun():
+    cand, fitter, val, rerun, calls = _case([0.0, 0.004, 0.0])
+    c = confirm.check(cand, fitter, val, SIGMA, 1.0, rerun, echo=lambda *a: None)
+    assert c.contradicted and c.experiment == "e1" and c.runs == 0 and not calls
+    assert c.z >= confirm.Z_WORSE and abs(c.excess - 0.16) < 0.03
+
+
+def test_an_open_case_is_run_again_and_settled_by_the_reruns_alone():
+    """A worsening of 0.0025 (0.0625 of the noise power) on 400 samples gives z near 1.25: open.
+    Reruns of that experiment settle it: contradicted where the plant goes on as the model without
+    the effect predicts, not where it moves as the verdict predicts."""
+    for plant_offset, expect in ((0.0, True), (0.0025, False)):
+        cand, fitter, val, rerun, calls = _case([0.0, 0.0025], plant_offset, seed=3)
+        for m in val.m_val:
+            m[400:] = False
+        c = confirm.check(cand, fitter, val, SIGMA, 1.0, rerun, echo=lambda *a: None)
+        assert confirm.Z_LOOK <= c.z < confirm.Z_WORSE, c
+        assert calls and calls[0][0] == 1 and c.times == c.runs == calls[0][1] <= confirm.MAX_TIMES
+        assert c.contradicted is expect, c
