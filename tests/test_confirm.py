@@ -26,11 +26,20 @@ def test_worsening_matches_its_expectation():
     y = truth + _noise(1)
     b = 0.004
     m = np.ones(N, bool)
-    (z, d), = confirm.worsening([y], [truth + b], [truth], [m], SIGMA, 1.0)
+    (z, d, before), = confirm.worsening([y], [truth + b], [truth], [m], SIGMA, 1.0)
     assert abs(d - (b / SIGMA) ** 2) < 0.03              # 0.16, +-3 sigma of the noise's part is 0.027
     assert abs(z - math.sqrt(N) * b / (2 * SIGMA)) < 3.5  # 12.6; the noise moves z by +-1
-    (z2, d2), = confirm.worsening([y], [truth], [truth + b], [m], SIGMA, 1.0)
-    assert z2 < -9 and d2 < -0.13
+    assert abs(before) < 0.07                            # the bare model is the truth: 3 sigma of chi2/N
+    (z2, d2, before2), = confirm.worsening([y], [truth], [truth + b], [m], SIGMA, 1.0)
+    assert z2 < -9 and d2 < -0.13 and abs(before2 - 0.16) < 0.03
+
+
+def test_a_little_worse_where_the_bare_model_missed_widely_is_not_against_the_verdict():
+    """A fit of the right family that is not exact may add a little to a large gap; only a
+    worsening of at least half the bare model's own excess there argues against the verdict."""
+    assert confirm.against(0.35, 0.44) and confirm.against(0.03, -0.02)
+    assert not confirm.against(0.35, 1.86)
+    assert not confirm.against(0.01, 0.0)
 
 
 def _case(offsets, plant_offset=0.0, seed=0):
