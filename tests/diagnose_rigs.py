@@ -149,6 +149,12 @@ def rate_limit_slow(u, dt):
     return _carried_actuator("rate_limit_slow", TRUTH["rate_limit_slow"]["rate"], u, dt)
 
 
+def rate_limit_slow_b(u, dt):
+    """The same slow actuator on a rig of its own (a test that must not start where another test's
+    diagnosis left the first one's actuator)."""
+    return _carried_actuator("rate_limit_slow_b", TRUTH["rate_limit_slow"]["rate"], u, dt)
+
+
 def bent_borders(u, dt):
     """Borders bent as S-curves, not any polynomial: the ascending one by
     ``+0.06 tanh(2.5 u) / tanh(2.5)``, the descending one by ``-0.04`` times the same (the play

@@ -185,7 +185,7 @@ def test_a_stage_1_that_did_not_identify_f_gives_way_to_the_whole_fit(tmp_path_f
         res, records = real(cfg, plant=plant, **kw)
         return dataclasses.replace(res, type="backlash_inverse", slope_down=5.18e21), records
     monkeypatch.setattr(nl, "identify_nonlinear", broken)
-    _slow_actuator_named(_run(tmp_path_factory, "rate_limit_slow"), "pre-compensator")
+    _slow_actuator_named(_run(tmp_path_factory, "rate_limit_slow_b"), "pre-compensator")
 
 
 def test_identified_slow_actuator_whose_position_carries_over(tmp_path_factory):

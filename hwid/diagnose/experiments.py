@@ -74,6 +74,7 @@ class Design:
     w_lo: float = -np.inf             # identified range of w (stage 1), model units
     w_hi: float = np.inf
     lead_s: float = 0.0               # hold at an experiment's first input before it is scored
+    z_centre: float = 0.0             # what the pre-compensated sines swing about (:func:`z_centre`)
 
     @property
     def lead_hold_s(self) -> float:
@@ -130,6 +131,20 @@ def bandwidth(model: HWModel, dt: float) -> float:
     return float(w[below[0]]) if below.size else float(0.5 * nyq)
 
 
+def z_centre(F, u_lo: float, u_hi: float, amplitude: float) -> float:
+    """What the pre-compensated sines swing about, in F's output units: 0, as the paper's sines do,
+    where ``[-amplitude, amplitude]`` lies inside what F gives over ``[u_lo, u_hi]``; otherwise the
+    middle of that range. A model fitted whole may put F's borders anywhere (h takes up the offset:
+    one had ``d+ = -3.35`` for a rig whose play sits about 0), and sines about 0 then drive the rig
+    three ranges beyond where it was identified."""
+    u = np.linspace(u_lo, u_hi, 201)
+    v = np.concatenate([F.ascending(u), F.descending(u)])
+    v_lo, v_hi = float(np.min(v)), float(np.max(v))
+    if not (np.isfinite(v_lo) and np.isfinite(v_hi)) or (v_lo < -amplitude and amplitude < v_hi):
+        return 0.0
+    return 0.5 * (v_lo + v_hi)
+
+
 def design_from(cfg, model: HWModel, identified: dict | None = None) -> Design:
     """Scales from the config's protocols and the sim-side model.
 
@@ -158,10 +173,15 @@ def design_from(cfg, model: HWModel, identified: dict | None = None) -> Design:
     lead = lead_time(model, lo, hi)
     if st is not None:
         lead = min(lead, 3.0 * float(st.hold))
+    zc = z_centre(F, lo, hi, amp)
     if identified:
         w_lo, w_hi = (float(x) for x in identified.get("w_range", (-np.inf, np.inf)))
-        return Design(dt, lo, hi, amp, settle, bandwidth(model, dt), int(cfg.seed), True, w_lo, w_hi, lead)
-    return Design(dt, lo, hi, amp, settle, bandwidth(model, dt), int(cfg.seed), lead_s=lead)
+        return Design(dt, lo, hi, amp, settle, bandwidth(model, dt), int(cfg.seed), True, w_lo, w_hi, lead, zc)
+    return Design(dt, lo, hi, amp, settle, bandwidth(model, dt), int(cfg.seed), lead_s=lead, z_centre=zc)
+
+
+#: the session's first call holds its first input this long (plus a settling time) before its lead-in
+OPENING_S = 60.0
 
 
 def _n(seconds: float, dt: float) -> int:
@@ -199,7 +219,7 @@ def _z_sweep(d: Design, a: float) -> np.ndarray:
     """``z`` from ``+a`` down to ``-a``: through the pre-compensator F ends on its descending border
     whatever state the rig was in (the move crosses the play when ``2a`` exceeds it)."""
     k = _n(max(d.settle_s / 8, 10 * d.dt), d.dt)
-    return np.concatenate([np.full(k, a), np.linspace(a, -a, k)])
+    return d.z_centre + np.concatenate([np.full(k, a), np.linspace(a, -a, k)])
 
 
 def _sine_exp(d: Design, F, name, role, amp, omega, seed_phase=0.0, times: int = 1) -> Experiment:
@@ -208,7 +228,7 @@ def _sine_exp(d: Design, F, name, role, amp, omega, seed_phase=0.0, times: int =
     n_lead = _n(max(d.lead_hold_s, period), dt)
     n_body = times * _n(max(2 * period, d.settle_s), dt)
     t = np.arange(n_lead + n_body) * dt
-    z = amp * np.sin(omega * t + seed_phase)
+    z = d.z_centre + amp * np.sin(omega * t + seed_phase)
     # the pre-compensator is applied to the whole record, after a sweep from one end to the other
     # that puts F on a known border
     far = _z_sweep(d, 1.05 * max(amp, d.amplitude))
@@ -309,7 +329,7 @@ def design(cfg, model: HWModel, d: Design | None = None) -> list[Experiment]:
             "validation": [(A, 0.3 * wc), (A, wc), (A, 4 * wc), (A, 16 * wc), (0.5 * A, wc), (1.25 * A, wc)]}
     # inside: sine amplitudes (and the broadband's peaks) within the identified w range, where the
     # pre-compensator and h were identified (the config's amplitude itself was identified in stage 2)
-    a_max = min(abs(d.w_lo), abs(d.w_hi)) if d.inside else np.inf
+    a_max = min(abs(d.w_lo - d.z_centre), abs(d.w_hi - d.z_centre)) if d.inside else np.inf
     a_max = max(a_max, A) if np.isfinite(a_max) else a_max
     for role, items in plan.items():
         seen = set()
@@ -327,12 +347,24 @@ def design(cfg, model: HWModel, d: Design | None = None) -> list[Experiment]:
         z = _multisine(d, rng, n, A / 2.5)
         if d.inside:
             z = np.clip(z, -a_max, a_max)
+        z = d.z_centre + z
         zl = np.concatenate([_z_sweep(d, 1.05 * A), np.full(_n(d.lead_hold_s, dt), z[0])])
         zz = np.concatenate([zl, z])
         u = _precomp(F, zz)
         mask = np.zeros(u.size, bool)
         mask[zl.size:] = True
         exps.append(Experiment(f"broadband_{role}", "broadband", role, u, mask, zz, {}))
+    # with a given model the session opens with a long hold at its first input: whatever ran before
+    # may have left an actuator anywhere, and one that slews across the range in a minute gets there
+    # before anything is scored (after an identification on the same plant, its records are what
+    # ran before, and the model is simulated from them)
+    if not d.inside:
+        first = exps[0]
+        n_open = _n(OPENING_S + d.settle_s, dt)
+        first.u = np.concatenate([np.full(n_open, first.u[0]), first.u])
+        first.mask = np.concatenate([np.zeros(n_open, bool), first.mask])
+        if first.z is not None:
+            first.z = np.concatenate([np.full(n_open, first.z[0]), first.z])
     # repeats at the end of the session
     for name in ("levels_validation", "steps_validation", "broadband_validation"):
         e = next(x for x in exps if x.name == name)
