@@ -149,6 +149,15 @@ def rate_limit_slow(u, dt):
     return _carried_actuator("rate_limit_slow", TRUTH["rate_limit_slow"]["rate"], u, dt)
 
 
+def rate_limit_slow_elsewhere(u, dt):
+    """The same slow actuator, left at +0.9 by whatever ran before the first call (the diagnosis
+    opens by commanding the far end of the range, -1.15)."""
+    r = _rig("rate_limit_slow_elsewhere")
+    if not hasattr(r, "actuator"):
+        r.actuator = 0.9
+    return _carried_actuator("rate_limit_slow_elsewhere", TRUTH["rate_limit_slow"]["rate"], u, dt)
+
+
 def rate_limit_slow_b(u, dt):
     """The same slow actuator on a rig of its own (a test that must not start where another test's
     diagnosis left the first one's actuator)."""

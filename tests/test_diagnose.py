@@ -121,14 +121,17 @@ def test_rate_limit_whose_actuator_carries_over(tmp_path_factory, base_model):
     assert s["gap_after"] < 1.2 * s["noise_floor"]
 
 
-def test_slow_actuator_named_with_its_rate(tmp_path_factory, base_model):
+@pytest.mark.parametrize("driver", ["rate_limit_slow", "rate_limit_slow_elsewhere"])
+def test_slow_actuator_named_with_its_rate(tmp_path_factory, base_model, driver):
     """An actuator that needs 15 s to cross the range (G settles in 4 s), carried over between
     calls: it remembers where it was several experiments back, so it is simulated through the whole
     session (simulated through the experiment before alone, it left the fast experiments 4-6x the
     noise and a drift was named). Named, its rate within 1 %, what is left is the rig's own noise.
     The floor from the repeats is higher than that noise here: a slow carried actuator starts a
-    repeat elsewhere than the original."""
-    s, _ = _run(tmp_path_factory, "rate_limit_slow", base_model)
+    repeat elsewhere than the original. Where the actuator was left at the other end of the range
+    before the first call, the session's opening hold brings it to the first input before anything
+    is scored (without it: 0.1439 units/s, 1.95x the floor)."""
+    s, _ = _run(tmp_path_factory, driver, base_model)
     top = s["candidates"][0]
     assert s["verdict"]["effect"] == "rate_limit" == top["effect"]
     assert abs(top["params"]["rate"] / R.TRUTH["rate_limit_slow"]["rate"] - 1) < 0.01
