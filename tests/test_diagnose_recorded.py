@@ -319,6 +319,28 @@ def test_drift_from_the_residual_needs_a_slow_wander_that_the_smoother_takes_out
     assert drift_from_residual(_log_validation(walks, x), drift(0.95) + bent(80.0), {}, _quiet)
 
 
+def test_a_drift_is_told_from_the_refit_residual_of_an_identified_model():
+    """A model identified from a log a drift runs through is bent by it: its own residual follows
+    the motion (here ``0.3 x^2`` on top of the wander), and the slow part of it is "explained" by
+    the motion. The candidates are measured against the refit model; told from its residual, the
+    wander in time is a drift (``x_model``, ``structure``: the refit's view)."""
+    from hwid.diagnose.log_drift import drift_from_residual
+    rng = np.random.default_rng(4)
+    n = 4000
+    t = np.arange(n) * logs.DT
+    x = np.sin(0.5 * t) + 0.6 * np.sign(np.sin(0.07 * t))
+    walks = [np.cumsum(rng.standard_normal(n)) * 0.003 + 0.01 * rng.standard_normal(n) for _ in range(2)]
+    bent_model = x - 0.3 * x ** 2                    # the identified model, off by 0.3 x^2
+    val = _log_validation([w + 0.3 * x ** 2 for w in walks], bent_model)
+    drift = [Candidate("drift", "noise", {"window_s": 2.0}, 0.01, 0.01, 0.95, 100.0, 1.0)]
+    additive = {}
+    assert not drift_from_residual(val, drift, additive, _quiet)
+    assert additive["motion_share"] > 0.5
+    additive = {}
+    assert drift_from_residual(val, drift, additive, _quiet, x_model=[x, x], structure=[{"kind": "none"}])
+    assert additive["motion_share"] < 0.2
+
+
 def test_a_remainder_of_the_plays_state_is_no_drift_where_a_candidate_explains_half():
     """Borders bent one way going up and the other going down leave ``0.04 d x`` (``d`` the
     direction the input last moved): over a staircase up and down, a sawtooth in time that the

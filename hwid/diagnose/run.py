@@ -264,7 +264,7 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
     if from_logs and drift_ok:
         drift_ok = drift_takes_the_excess(cands, echo)
     elif from_logs and not repeats and test.significant and additive["additive"]:
-        drift_ok = drift_from_residual(val, cands, additive, echo)
+        drift_ok = drift_from_residual(val, cands, additive, echo, *(_refit_view(val, fitter) if identified else ()))
     if not identified:
         drift_ok = drift_ok and drift_leaves_little(cands, floor.sigma, echo)
     if not drift_ok:    # drift listed last: the plant repeats itself, or what changes is not additive
@@ -328,6 +328,17 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
          f"(block {summary['verdict']['block']}, explained {explained:.2f}); "
          f"gap {summary['gap_before']:.4g} -> {summary['gap_after']:.4g}, noise floor {floor.sigma:.4g}")
     return summary
+
+
+def _refit_view(val: Validation, fitter) -> tuple[list, list]:
+    """The refit model's output on every experiment (h, F and G re-estimated on the fit part: the
+    baseline every candidate of an identified model is measured against) and the tests on its
+    validation residual (:mod:`hwid.diagnose.residual_structure`)."""
+    xs = dict(zip(val.fit_idx, fitter.baseline_fit)) | dict(zip(val.val_idx, fitter.baseline_val))
+    segments = [residual_structure.Segment(val.exps[i].u, y, x, val.design.dt, val.exps[i].mask,
+                                           val.exps[i].variable.get("omega"))
+                for i, y, x in zip(val.val_idx, val.y_val, fitter.baseline_val)]
+    return [xs[i] for i in range(len(val.exps))], residual_structure.residual_structure(segments)
 
 
 def actuator_hints(origin: dict) -> dict:
