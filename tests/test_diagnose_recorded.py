@@ -3,6 +3,8 @@
 against the rig's truth: the effect it carries, its strength, the noise floor, and no false alarm."""
 from __future__ import annotations
 
+import dataclasses
+
 import json
 from pathlib import Path
 
@@ -268,6 +270,11 @@ def test_of_explanations_the_data_cannot_tell_apart_the_one_with_fewer_parameter
     assert simplest_in_group(drift, [{"effects": ["drift", "time_delay"]}], [drift, delay]) is drift
     assert simplest_in_group(reso, [], [reso, delay]) is reso
     assert simplest_in_group("unexplained", groups, [reso]) == "unexplained"
+    # the simpler member must explain at least half of what the verdict explains
+    strong = dataclasses.replace(reso, explained_fraction=0.67)
+    weak, fair = (dataclasses.replace(delay, explained_fraction=f) for f in (0.09, 0.34))
+    assert simplest_in_group(strong, [{"effects": ["resonance", "time_delay"]}], [strong, weak]) is strong
+    assert simplest_in_group(strong, [{"effects": ["resonance", "time_delay"]}], [strong, fair]) is fair
 
 
 def test_report_says_how_the_log_was_used(rate_log):
