@@ -510,3 +510,23 @@ def test_diagnosis_section_holds_the_json_numbers(tmp_path):
     first = [re.sub(r"<[^>]+>", "", c).strip() for c in re.findall(r"<td>(.*?)</td>", cand, re.S)][:4]
     assert first[0] == js["candidates"][0]["effect"]
     assert _nums(first[3])[0] == pytest.approx(js["candidates"][0]["gap_after"], rel=1e-3)
+
+
+def test_diagnosis_section_says_why_and_what_the_confirmation_found():
+    """A verdict turned `unexplained` by the confirmation: the section gives ``verdict.why`` and the
+    confirmation's numbers, as in the JSON."""
+    from hwid.report.tables import diagnosis_html
+    conf = {"effect": "curved_borders", "experiment": "sine_validation_A1_w2.83", "z": 0.86, "excess": 0.04,
+            "runs": 1, "times": 24, "z_rerun": 5.3, "excess_rerun": 0.051, "rig_seconds": 540.0,
+            "contradicted": True}
+    summary = {"verdict": {"effect": "unexplained", "block": "input", "explained_fraction": 0.0,
+                           "why": "curved_borders removes the gap where it is largest but makes the model worse"},
+               "where": {"region": "extremes", "trend": "none", "experiments": []},
+               "gap_before": 4.06, "gap_after": 4.06, "noise_floor": 0.01, "model": {"source": "given"},
+               "candidates": [], "confirmation": conf}
+    page = diagnosis_html({"summary": summary})
+    why = re.search(r"<p id='verdict-why'>(.*?)</p>", page).group(1)
+    assert why.startswith("curved_borders removes the gap")
+    line = re.search(r"<p id='confirmation'>(.*?)</p>", page).group(1)
+    assert "sine_validation_A1_w2.83" in line and "24x" in line and line.endswith("contradicted.")
+    assert _nums(line.split("run again")[1])[1:3] == pytest.approx([5.3, 0.051])

@@ -218,6 +218,16 @@ def diagnosis_html(diagnosis: dict) -> str:
                  _num(verdict["explained_fraction"], 3), _num(summary["gap_before"]), _num(summary["gap_after"]),
                  _num(summary["noise_floor"]), _html.escape(str(where["region"])), _html.escape(str(where["trend"]))])]
     out = [f"<table id='diagnosis'>{''.join(rows)}</table>"]
+    if verdict.get("why"):
+        out.append(f"<p id='verdict-why'>{_html.escape(verdict['why'])}.</p>")
+    conf = summary.get("confirmation")
+    if conf:
+        again = (f"; run again for {conf['times']}x its length: z = {_num(conf['z_rerun'], 3)}, excess "
+                 f"{_num(conf['excess_rerun'], 3)}" if conf.get("runs") else "")
+        out.append(f"<p id='confirmation'>Confirmation of {_html.escape(conf['effect'])} against the model without "
+                   f"it, on the experiment it makes worst ({_html.escape(conf['experiment'])}): z = "
+                   f"{_num(conf['z'], 3)}, excess {_num(conf['excess'], 3)} of the noise power{again}: "
+                   f"{'contradicted' if conf['contradicted'] else 'not contradicted'}.</p>")
     out += _from_logs_html(summary)
     if summary["model"]["source"] == "identified":
         out.append(f"<p>Model identified from the same plant; with h re-estimated on the diagnosis's fit "
