@@ -48,7 +48,8 @@ def _case(offsets, plant_offset=0.0, seed=0):
     ``plant_offset``."""
     truth = np.sin(np.linspace(0, 20, N))
     masks = [np.ones(N, bool) for _ in offsets]
-    exps = [SimpleNamespace(name=f"e{j}", u=np.full(N, float(j)), mask=masks[j]) for j in range(len(offsets))]
+    exps = [SimpleNamespace(name=f"e{j}", kind="steps", u=np.full(N, float(j)), mask=masks[j])
+            for j in range(len(offsets))]
     val = SimpleNamespace(y_val=[truth + _noise(seed + j) for j in range(len(offsets))],
                           sim_val=SimpleNamespace(x=[truth for _ in offsets]), m_val=masks,
                           val_idx=list(range(len(offsets))), exps=exps, design=SimpleNamespace(dt=0.05))

@@ -9,7 +9,8 @@ without any effect (its mean-square error up by 0.36 of the noise's, z = 4-6). A
 judged seeds' labelled diagnoses with a given model never added more than 0.011 of the noise power
 to any experiment.
 
-Per validation experiment, the paired test of :func:`hwid.diagnose.verdict.paired_z`, signed: ``z``
+Per validation experiment, the paired test of :func:`hwid.diagnose.verdict.paired_z`, signed
+(:func:`hwid.diagnose.verdict.paired_stats`): ``z``
 is ``sum(e_with^2 - e_without^2)`` against its standard deviation when both predictions fit equally
 well, ``2 sigma sqrt(sum (p_with - p_without)^2) sqrt(kappa)``; ``excess`` is the same difference
 per scored sample in units of the noise power. A worsening argues against the verdict where it is
@@ -30,6 +31,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from hwid.diagnose.verdict import paired_stats, paired_sums
 
 #: smallest worsening that counts, in units of the noise power per scored sample
 EXCESS_MIN = 0.02
@@ -82,29 +85,12 @@ class Confirmation:
                 f"on {on}: it stands in for an effect it is not, unexplained")
 
 
-def _sums(y, a, b, m, sigma: float, kappa: float) -> tuple[float, float, int, float]:
-    """One experiment's ``sum(e_with^2 - e_without^2)``, the variance of that sum when both fit
-    alike, the scored samples and ``sum(e_without^2)``."""
-    m = np.asarray(m, bool)
-    y, a, b = (np.asarray(x, float)[m] for x in (y, a, b))
-    ea, eb, d = y - a, y - b, a - b
-    return float(ea @ ea - eb @ eb), 4.0 * sigma * sigma * float(d @ d) * max(kappa, 1.0), int(m.sum()), float(eb @ eb)
-
-
-def _pooled(sums, sigma: float) -> tuple[float, float, float]:
-    """``(z, excess, before)`` of one or more runs together (module docstring)."""
-    num, var, n, base = (sum(s[i] for s in sums) for i in range(4))
-    if n == 0:
-        return 0.0, 0.0, 0.0
-    power = n * sigma * sigma
-    return (num / math.sqrt(var) if var > 0 else 0.0), num / power, base / power - 1.0
-
-
 def worsening(ys, with_effect, without, masks, sigma: float, kappa: float) -> list[tuple[float, float, float]]:
     """``(z, excess, before)`` of each experiment (module docstring): positive ``z`` and ``excess``
     where the effect makes the model worse; ``before`` is the model's own excess there without the
     effect (mean-square error over the noise power, minus one)."""
-    return [_pooled([_sums(y, a, b, m, sigma, kappa)], sigma) for y, a, b, m in zip(ys, with_effect, without, masks)]
+    return [paired_stats([paired_sums(y, a, b, m, sigma, kappa)], sigma)
+            for y, a, b, m in zip(ys, with_effect, without, masks)]
 
 
 def against(excess: float, before: float, least: float = EXCESS_MIN) -> bool:
@@ -121,8 +107,9 @@ def against(excess: float, before: float, least: float = EXCESS_MIN) -> bool:
 def check(verdict, fitter, val, sigma: float, kappa: float, rerun=None, echo=print) -> Confirmation | None:
     """Whether the validation experiments contradict the verdict, and, where they leave it open, the
     plant's own answer on the one experiment that argues most against it: ``rerun(index, times)``
-    runs validation experiment ``val.exps[index]`` again for ``times`` its scored length and returns
-    ``[(u, y, mask), ...]``. ``None`` where there is nothing to check (a drift predicts no new run;
+    runs validation experiment ``val.exps[index]`` again for ``times`` its scored length
+    (:func:`hwid.diagnose.experiments.again`; ``times`` at most :data:`MAX_TIMES` for a sine,
+    :data:`MAX_RUNS` otherwise) and returns ``[(u, y, mask), ...]``. ``None`` where there is nothing to check (a drift predicts no new run;
     no experiment is made worse by a material amount)."""
     if verdict.effect == "drift" or not verdict.predictions:
         return None
@@ -140,14 +127,14 @@ def check(verdict, fitter, val, sigma: float, kappa: float, rerun=None, echo=pri
         return dataclasses.replace(found, contradicted=True)
     if z < Z_LOOK or rerun is None:
         return found
-    times = int(min(MAX_TIMES, max(2, math.ceil((Z_AIM / z) ** 2))))
+    times = int(min(MAX_TIMES if exp.kind == "sine" else MAX_RUNS, max(2, math.ceil((Z_AIM / z) ** 2))))
     echo(f"{verdict.effect} makes {exp.name} worse than the model without it (z = {z:.1f}, {d:+.3f} of the noise "
          f"power): running it again for {times}x its length")
     runs = rerun(index, times)
     inputs = [np.asarray(u, float) for u, _, _ in runs]
     with_effect = fitter.predict_on(verdict.fitted, verdict.theta, inputs)
     without = fitter.predict_on(None, None, inputs)
-    z_r, d_r, before_r = _pooled([_sums(y, a, b, m, sigma, kappa)
+    z_r, d_r, before_r = paired_stats([paired_sums(y, a, b, m, sigma, kappa)
                                   for (_, y, m), a, b in zip(runs, with_effect, without)], sigma)
     seconds = float(sum(u.size for u in inputs) * val.design.dt)
     echo(f"  again: z = {z_r:.1f}, {d_r:+.3f} of the noise power, the model without it {before_r:+.3f} "

@@ -148,11 +148,8 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
             "seconds_model": seconds_model, "seconds_rig_validation": val.seconds_rig}
 
     def rerun(index: int, times: int) -> list:
-        e = val.exps[index]
-        if e.kind != "sine":
-            times = min(times, confirm.MAX_RUNS)
         return [(x.u, plant.run(x.name, x.u, z=x.z).y, x.mask)
-                for x in experiments.again(val.design, sim_model, e, times)]
+                for x in experiments.again(val.design, sim_model, val.exps[index], times)]
 
     return conclude(cfg, out, json_path, val, floor, additive, sim_model, origin, effects, cost, t_start, echo,
                     rerun=rerun)
@@ -231,7 +228,7 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
     (:func:`drift_from_residual`); ``wander(outputs)``: how far the plant's holds wander from the
     validation outputs of a model (a log's, :func:`repeats_under_best`); ``extra(fitter, cands,
     verdict, summary)`` adds what a caller knows beyond that (a recorded plant's data split and next
-    experiment); ``rerun(index, runs)``: the live plant's records of validation experiment ``index``
+    experiment); ``rerun(index, times)``: the live plant's records of validation experiment ``index``
     run again (:func:`hwid.diagnose.confirm.check`). Writes ``diagnosis.h5`` and the JSON; returns
     the summary."""
     identified = origin.get("source") == "identified"

@@ -184,18 +184,29 @@ def paired_z(a: Candidate, b: Candidate, y_val, m_val, sigma: float, kappa: floa
     fit equally well, ``2 sigma rms(p_a - p_b) sqrt(kappa / n)`` (a Diebold-Mariano test with the
     noise's correlation time ``kappa``). Two candidates whose predictions differ by less than the
     noise can show over these records get a small ``z`` whatever their gaps."""
-    num, diff2, n = 0.0, 0.0, 0
-    for y, pa, pb, m in zip(y_val, a.predictions, b.predictions, m_val):
-        m = np.asarray(m, bool)
-        ea, eb = (np.asarray(y) - pa)[m], (np.asarray(y) - pb)[m]
-        num += float(ea @ ea - eb @ eb)
-        d = (np.asarray(pa) - pb)[m]
-        diff2 += float(d @ d)
-        n += int(m.sum())
+    z, _, _ = paired_stats([paired_sums(y, pa, pb, m, sigma, kappa)
+                            for y, pa, pb, m in zip(y_val, a.predictions, b.predictions, m_val)], sigma)
+    return abs(z)
+
+
+def paired_sums(y, a, b, m, sigma: float, kappa: float) -> tuple[float, float, int, float]:
+    """One record's terms of the paired test of predictions ``a`` and ``b`` of ``y`` over the scored
+    samples ``m``: ``sum(e_a^2 - e_b^2)``, its variance when both fit alike
+    (``4 sigma^2 sum (a - b)^2 kappa``), the scored samples and ``sum(e_b^2)``."""
+    m = np.asarray(m, bool)
+    y, a, b = (np.asarray(x, float)[m] for x in (y, a, b))
+    ea, eb, d = y - a, y - b, a - b
+    return float(ea @ ea - eb @ eb), 4.0 * sigma * sigma * float(d @ d) * max(kappa, 1.0), int(m.sum()), float(eb @ eb)
+
+
+def paired_stats(sums, sigma: float) -> tuple[float, float, float]:
+    """Records' :func:`paired_sums` together: the signed ``z`` (positive where ``a`` fits worse),
+    ``mean(e_a^2 - e_b^2)`` and ``mean(e_b^2) - sigma^2``, both in units of ``sigma^2``."""
+    num, var, n, base = (sum(s[i] for s in sums) for i in range(4))
     if n == 0:
-        return 0.0
-    spread = 2.0 * sigma * np.sqrt(diff2 / n) * np.sqrt(max(kappa, 1.0) / n)
-    return float(abs(num / n) / spread) if spread > 0 else 0.0
+        return 0.0, 0.0, 0.0
+    power = n * sigma * sigma
+    return (float(num / np.sqrt(var)) if var > 0 else 0.0), num / power, base / power - 1.0
 
 
 def indistinguishable(cands: list[Candidate], y_val, m_val, sigma: float, kappa: float, drift_plausible: bool,
