@@ -22,7 +22,7 @@ NOISE = 0.01
 TRUTH = {"sensor_lag": {"tau_s": 1.5}, "rate_limit": {"rate": 0.4}, "rate_limit_slow": {"rate": 2.0 / 15.0}, "input_deadzone": {"delta": 0.2},
          "sensor_saturation": {"y_lo": -0.55, "y_hi": 0.55}, "resonance": {"omega_n": 4.0, "zeta": 0.05},
          "rate_limit_inverse": {"rate": 5.6}, "input_saturation_paper": {"u_lo": -1.23, "u_hi": 0.73},
-         "bent_borders": {"up": 0.06, "down": -0.04}}
+         "bent_borders": {"up": 0.06, "down": -0.04}, "sensor_saturation_paper": {"y_lo": -1.3, "y_hi": 1.3}}
 # the paper's plant (Section 6) as an hwid model: the base of the paper-rig tests
 PAPER = {"kind": "hammerstein_wiener",
          "input_nonlinearity": {"type": "backlash", "slope_up": 1.0, "slope_down": 1.0, "d_plus": 0.5, "d_minus": -0.5},
@@ -299,6 +299,17 @@ def input_saturation_paper(u, dt):
     u = np.clip(np.asarray(u, float), t["u_lo"], t["u_hi"])
     return r.paper(u, dt) + r.noise(u.size)
 
+
+
+def sensor_saturation_paper(u, dt):
+    """The paper's plant behind a sensor that reads y clipped to [-1.3, 1.3], its rails exactly (an
+    ADC's end codes): the ascending staircase's horizontal path from u = -1.4 (h = -1.78 there)
+    and the amplitude-1 sines' peaks read the rails."""
+    if "sensor_saturation_paper" not in _RIGS:
+        _RIGS["sensor_saturation_paper"] = _PaperRig(zlib.crc32(b"sensor_saturation_paper"))
+    r = _RIGS["sensor_saturation_paper"]
+    t = TRUTH["sensor_saturation_paper"]
+    return np.clip(r.paper(np.asarray(u, float), dt) + r.noise(len(u)), t["y_lo"], t["y_hi"])
 
 
 def paper_at_rest(u, dt):

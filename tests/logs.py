@@ -46,13 +46,15 @@ def lab_parts(hold: float = 4.0, lo: float = -1.5, hi: float = 1.5) -> list[np.n
 
 def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int = 0, parts=None,
               one_record: bool = False, ar: float = 0.0, carry: bool = False, linear: dict | None = None,
-              drift: tuple[float, float] | None = None):
+              drift: tuple[float, float] | None = None, opening_rail: tuple[float, float] | None = None):
     """Write ``NAME.csv`` and its recorded config ``NAME.yaml``; return the config path. ``ar``:
     the noise's lag-1 coefficient (AR(1) noise of s.d. :data:`SIGMA`; 0 is white). ``carry``: the
     rate-limited actuator runs on through the pauses (each part starts where the last left it),
     else it starts at each part's first input. ``linear``: G's ``num, den`` (and ``delay``, s) in place of :data:`G`.
     ``drift``: ``(time_s, std)`` of an additive Ornstein-Uhlenbeck offset in y that runs on through
-    the whole session (drawn after the noise, from its own generator)."""
+    the whole session (drawn after the noise, from its own generator). ``opening_rail``: ``(y, s)``,
+    the first part's first ``s`` seconds read exactly ``y`` (a sensor at its rail while the rig came
+    into its range as the log began)."""
     rng = np.random.default_rng(seed)
     g = G if linear is None else linear
     m = HWModel(InputNonlinearity(F["type"], F["slope_up"], F["slope_down"], F["d_plus"], F["d_minus"]),
@@ -83,6 +85,8 @@ def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int 
         y = m.simulate(ue, DT).x + SIGMA * e
         if drift is not None:
             y = y + offset[ends[k] - u.size:ends[k]]
+        if opening_rail is not None and k == 0:
+            y[:int(round(opening_rail[1] / DT))] = opening_rail[0]
         ts = t0 + (np.arange(u.size) + rng.uniform(-0.03, 0.03, u.size)) * DT
         frames.append(pd.DataFrame({"timestamp": pd.Timestamp("2026-03-02T10:00:00") + pd.to_timedelta(ts, "s"),
                                     "command": u * 100 + 2048, "position": y * 500, "temperature": 31.0}))

@@ -81,6 +81,37 @@ def test_identified_sensor_saturation_named_with_its_limits(tmp_path_factory):
     assert s["gap_after"] < 1.5 * s["noise_floor"]
 
 
+def test_a_sensor_that_clips_the_identifications_own_records_is_named(tmp_path):
+    """The paper's plant behind a sensor that reads its rails exactly, identified from the paper's
+    staircases and sines: the ascending staircase's horizontal path and the sines' peaks read the
+    rails. Stage 1 leaves the clipped levels out of h's fit and stage 2 runs its sines smaller until
+    they stay off the rails; identified through them, h had even terms and G a right-half-plane zero,
+    which no effect's refit repaired (the verdict was `unexplained`, 25x the floor left). Now the
+    model is the plant's, and the clip is named with its limits to within noise."""
+    d = {"name": "paper-clip", "seed": 11, "sampling": {"dt": 0.05},
+         "plant": {"kind": "external", "callable": "diagnose_rigs:sensor_saturation_paper"},
+         "protocols": {"staircase": {"levels_up": [round(float(x), 4) for x in np.linspace(-1.4, 1.2, 10)],
+                                     "levels_down": [round(float(x), 4) for x in np.linspace(1.2, -1.4, 11)[1:]],
+                                     "hold": 30.0},
+                       "sine": {"amplitude": 1.0, "frequencies": [0.02, 0.05, 0.1, 0.2], "periods": 3}}}
+    (tmp_path / "cfg.yaml").write_text(yaml.safe_dump(d))
+    said = []
+    s = diagnose(config.load(tmp_path / "cfg.yaml"), tmp_path / "out", echo=said.append)
+    t = R.TRUTH["sensor_saturation_paper"]
+    assert any("run again at amplitude 0.7" in line for line in said)
+    assert [(r["side"], r["value"]) for r in s["output_rails"]] == [("low", t["y_lo"]), ("high", t["y_hi"])]
+    assert s["verdict"]["effect"] == "sensor_saturation"
+    top = s["candidates"][0]
+    for key in ("y_lo", "y_hi"):
+        assert abs(top["params"][key] - t[key]) < 0.01
+    assert s["gap_before"] > 10 * s["noise_floor"] and s["gap_after"] < 1.1 * s["noise_floor"]
+    # the identified model is the paper's: h of degree 5, G(s) = 0.1/(s^2 + 0.7 s + 0.1) with G(0) = 1
+    m = s["model"]
+    assert len(m["output_nonlinearity"]["polynomial"]) == 6
+    den = np.asarray(m["linear"]["den"]) / m["linear"]["den"][0]
+    assert np.allclose(den, [1.0, 0.7, 0.1], atol=0.02)
+
+
 def test_identified_resonance_outside_the_band(tmp_path_factory):
     """A mode at 4 rad/s (5x the bandwidth of G), above the sines (0.3-3 rad/s): whether stage 2 or the refit put it into
     G, it is taken out of the baseline and must come back as the resonance effect."""

@@ -82,6 +82,23 @@ def test_plain_log_is_no_false_alarm(tmp_path, way):
         assert s["model"]["source"] == "identified"
 
 
+def test_a_log_that_opens_on_the_sensors_rail_names_the_clip(tmp_path):
+    """The rig's own model as ``--model``, and a log whose first 6 s read the sensor's low rail
+    exactly (the rig came into the sensor's range as logging began): the opening is where the
+    model's state is unknown and no validation part shows a gap, yet the sensor clipped, which the
+    model cannot. The clip is named from the rail, and said so; the same log without the rail is
+    `none` (:func:`test_plain_log_is_no_false_alarm`)."""
+    rail = -1.2
+    cfg = config.load(logs.write_lab(tmp_path, "rail", seed=4, opening_rail=(rail, 6.0)))
+    s = diagnose(cfg, tmp_path / "out", model=logs.write_model(tmp_path), echo=_quiet)
+    # the 300 samples written, give or take the resampling of the jittered timestamps at its edge
+    assert [r["side"] for r in s["output_rails"]] == ["low"]
+    assert abs(s["output_rails"][0]["samples"] - 6.0 / logs.DT) <= 3
+    assert abs(s["output_rails"][0]["value"] - rail) < 1e-9
+    assert s["gap_before"] <= 1.1 * s["noise_floor"]
+    assert s["verdict"]["effect"] == "sensor_saturation" and "rail" in s["verdict"]["why"]
+
+
 def test_plain_log_with_coloured_noise_is_no_false_alarm(tmp_path):
     """AR(1) noise (lag-1 coefficient 0.5, as on the blind check's asymmetric base), identified
     from the log: the floor carries the noise's correlation, and no effect is credited with what

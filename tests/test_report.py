@@ -530,3 +530,15 @@ def test_diagnosis_section_says_why_and_what_the_confirmation_found():
     line = re.search(r"<p id='confirmation'>(.*?)</p>", page).group(1)
     assert "sine_validation_A1_w2.83" in line and "24x" in line and line.endswith("contradicted.")
     assert _nums(line.split("run again")[1])[1:3] == pytest.approx([5.3, 0.051])
+    assert "output-rails" not in page
+
+
+def test_diagnosis_section_gives_the_output_rails():
+    from hwid.report.tables import diagnosis_html
+    summary = {"verdict": {"effect": "sensor_saturation", "block": "output", "explained_fraction": 1.0},
+               "where": {"region": "extremes", "trend": "none", "experiments": []},
+               "gap_before": 0.2, "gap_after": 0.01, "noise_floor": 0.01, "model": {"source": "identified"},
+               "gap_model_refit": 0.1, "candidates": [],
+               "output_rails": [{"side": "low", "value": -1.3, "samples": 900, "runs": 12, "records": ["a"]}]}
+    line = re.search(r"<p id='output-rails'>(.*?)</p>", diagnosis_html({"summary": summary})).group(1)
+    assert "low" in line and _nums(line)[-3:] == pytest.approx([-1.3, 900, 12])

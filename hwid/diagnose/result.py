@@ -19,7 +19,8 @@ class DiagnosisResult:
     leading group on the live rig; ``data``: for a recorded plant, how the records were split and
     where the noise floor came from; ``confirmation``: with a given model, whether the verdict makes any
     experiment worse than the model without it (:mod:`hwid.diagnose.confirm`; ``None``: nothing to
-    check)."""
+    check); ``output_rails``: the ends of the sensor's range the measured output rested on
+    (:mod:`hwid.identify.rails`; ``side``, ``value``, ``samples``, ``runs``, ``records``)."""
 
     verdict: dict
     gap_before: float
@@ -39,6 +40,7 @@ class DiagnosisResult:
     next_experiment: dict | None = None
     data: dict | None = None
     confirmation: dict | None = None
+    output_rails: list = ()
 
     def to_dict(self) -> dict:
         return {"verdict": self.verdict, "gap_before": self.gap_before, "gap_after": self.gap_after,
@@ -47,5 +49,5 @@ class DiagnosisResult:
                 "test": self.test, "noise": self.noise, "model": self.model, "design": self.design,
                 "cost": self.cost, "residual_structure": self.residual_structure,
                 "indistinguishable": list(self.indistinguishable), "next_experiment": self.next_experiment,
-                "confirmation": self.confirmation,
+                "confirmation": self.confirmation, "output_rails": list(self.output_rails),
                 **({"data": self.data} if self.data is not None else {})}

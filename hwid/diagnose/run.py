@@ -23,6 +23,7 @@ from hwid.diagnose.sim_side import load_model
 from hwid.diagnose.verdict import (Candidate, alternative_baseline, eligible, indistinguishable, refloor,
                                     simplest_in_group)
 from hwid.diagnose.verdict import verdict as decide_verdict
+from hwid.identify import rails
 from hwid.plant import make_plant
 from hwid.results import write_diagnosis, write_json
 
@@ -233,6 +234,9 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
     the summary."""
     identified = origin.get("source") == "identified"
     t0 = time.perf_counter()
+    on_rails = rails.find_rails(*_outputs_seen(val, origin))
+    if on_rails:
+        echo(rails.describe(on_rails, val.design.dt))
     res_before = [y - x for y, x in zip(val.y_val, val.sim_val.x)]
     gap_before = gap.gap(res_before, val.m_val)
     n_val = int(sum(m.sum() for m in val.m_val))
@@ -301,6 +305,8 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
             why = confirmation.why
             echo(why)
             verdict = "unexplained"
+    if verdict == "none" and on_rails:
+        verdict, why = _named_from_rails(cands, on_rails, val.design.dt, echo) or (verdict, why)
     if confirmation is not None:
         cost = {**cost, "plant_calls_confirmation": confirmation.runs,
                 "rig_seconds_confirmation": confirmation.rig_seconds}
@@ -309,6 +315,7 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
                      fitter, id_err, by_effect, sim_model, origin, cost, groups)
     if confirmation is not None:
         result = dataclasses.replace(result, confirmation=confirmation.to_dict())
+    result = dataclasses.replace(result, output_rails=[r.to_dict() for r in on_rails])
     summary = result.to_dict()
     if isinstance(verdict, Candidate):
         summary["test"]["after_verdict"] = test_of(verdict.gap_after).to_dict()
@@ -325,6 +332,33 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
          f"(block {summary['verdict']['block']}, explained {explained:.2f}); "
          f"gap {summary['gap_before']:.4g} -> {summary['gap_after']:.4g}, noise floor {floor.sigma:.4g}")
     return summary
+
+
+def _outputs_seen(val: Validation, origin: dict) -> tuple[list, list]:
+    """Every output the diagnosis saw, once each (the identification's records, the experiments';
+    a log's estimated start left out), with the records' names: where to look for a sensor rail."""
+    ys, names, seen = [], [], set()
+    for r in list(origin.get("records", [])) + list(val.records):
+        if id(r) in seen or getattr(r, "y", None) is None:
+            continue
+        seen.add(id(r))
+        ys.append(np.asarray(r.y, float)[int((getattr(r, "attrs", None) or {}).get("pre", 0)):])
+        names.append(r.name)
+    return ys, names
+
+
+def _named_from_rails(cands, on_rails, dt: float, echo):
+    """``(sensor_saturation, why)`` where the gap test found nothing but the output rested on a
+    sensor rail (:mod:`hwid.identify.rails`): the rig clipped where the validation experiments do not
+    show it (a log whose clipped stretch lies in its opening, where the model's state is unknown),
+    and a model without the sensor's range is missing it; None if that effect was not fitted."""
+    named = next((c for c in cands if c.effect == "sensor_saturation"), None)
+    if named is None:
+        return None
+    why = (f"{rails.describe(on_rails, dt)}: the sensor clips and the model does not; sensor_saturation is named "
+           "from the rails, as the validation experiments show no gap")
+    echo(why)
+    return named, why
 
 
 def _refit_view(val: Validation, fitter) -> tuple[list, list]:

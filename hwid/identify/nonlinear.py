@@ -73,6 +73,10 @@ from hwid.results import read_experiments
 
 TYPES = ("backlash", "backlash_inverse")
 
+#: a level that reads a sensor rail gets this many times the largest |X_hat| as its standard error:
+#: no fit of h follows it (:meth:`NonlinearEstimator._off_the_rails`)
+RAIL_SE = 1e4
+
 
 class NonlinearIdentificationError(HwidError):
     """Stage 1 cannot proceed with these data (narrow working interval, too few levels, ...)."""
@@ -178,6 +182,7 @@ class NonlinearEstimator:
         warns: list[str] = []
         data, n_up, n_dn = self._steady_levels(up_record, down_record, up_staircase, down_staircase, warns)
         j_a, j_d, z_up = self._flat_paths(data, n_up, n_dn)
+        self._off_the_rails(up_record, down_record, data, n_up, warns)
         degrees, pmax_up = self._degrees(n_up, n_dn, j_a, j_d, warns)
         kinds = list(TYPES) if self.input_type == "auto" else [self.input_type]
         table = self._candidates(kinds, degrees, data, j_a, j_d, n_up)
@@ -226,6 +231,30 @@ class NonlinearEstimator:
         data = LevelData(np.asarray(up_staircase.all_levels, float), np.asarray(down_staircase.all_levels, float),
                          len(up_staircase.lead_in), len(down_staircase.lead_in), st.mean.copy(), st.se.copy())
         return data, len(segments_up), len(segments_down)
+
+    def _off_the_rails(self, up_record, down_record, data, n_up: int, warns) -> None:
+        """Levels whose averaged output rests on a sensor rail (:mod:`hwid.identify.rails`) read the
+        rail, not ``h``: their standard error is made so large that the fit of h and the borders
+        does not use them (the horizontal paths are found before, where a clipped path still reads
+        one value). Through them, h bends to meet the rail: the paper's plant behind a sensor that
+        clipped its ascending staircase's horizontal path was given a degree-6 h with even terms."""
+        from hwid.identify.rails import find_rails
+        found = find_rails([up_record.y, down_record.y])
+        if not found:
+            return
+        st = self.steady_
+        clipped = []
+        for j in range(data.X.size):
+            y = np.asarray((up_record if j < n_up else down_record).y, float)
+            seg = y[int(st.first[j]):int(st.first[j]) + int(st.n[j])]
+            if seg.size and any(np.mean(seg == r.value) > 0.5 for r in found):
+                clipped.append(j)
+        if not clipped or data.X.size - len(clipped) < 4:
+            return
+        data.se[clipped] = RAIL_SE * max(float(np.max(np.abs(data.X))), 1.0)
+        warns.append(f"{len(clipped)} level(s) read the sensor's rail ({', '.join(f'{r.value:.6g}' for r in found)}): "
+                     f"not used for h and the borders (levels {', '.join(str(j + 1) for j in clipped)}, ascending "
+                     f"first)")
 
     def _flat_paths(self, data, n_up: int, n_dn: int):
         """Step 2: ``j_a``, ``j_d`` (eqs. 7a, 14a) by the sequential tests; a staircase that never

@@ -228,6 +228,11 @@ def diagnosis_html(diagnosis: dict) -> str:
                    f"it, on the experiment it makes worst ({_html.escape(conf['experiment'])}): z = "
                    f"{_num(conf['z'], 3)}, excess {_num(conf['excess'], 3)} of the noise power{again}: "
                    f"{'contradicted' if conf['contradicted'] else 'not contradicted'}.</p>")
+    rails = summary.get("output_rails") or []
+    if rails:
+        out.append("<p id='output-rails'>The measured output rests on the sensor's rail: " + "; ".join(
+            f"{r['side']} {_num(r['value'])} for {r['samples']} samples in {r['runs']} run(s)" for r in rails)
+            + ".</p>")
     out += _from_logs_html(summary)
     if summary["model"]["source"] == "identified":
         out.append(f"<p>Model identified from the same plant; with h re-estimated on the diagnosis's fit "
