@@ -22,7 +22,8 @@ NOISE = 0.01
 TRUTH = {"sensor_lag": {"tau_s": 1.5}, "rate_limit": {"rate": 0.4}, "rate_limit_slow": {"rate": 2.0 / 15.0}, "input_deadzone": {"delta": 0.2},
          "sensor_saturation": {"y_lo": -0.55, "y_hi": 0.55}, "resonance": {"omega_n": 4.0, "zeta": 0.05},
          "rate_limit_inverse": {"rate": 5.6}, "input_saturation_paper": {"u_lo": -1.23, "u_hi": 0.73},
-         "bent_borders": {"up": 0.06, "down": -0.04}, "sensor_saturation_paper": {"y_lo": -1.3, "y_hi": 1.3}}
+         "bent_borders": {"up": 0.06, "down": -0.04}, "sensor_saturation_paper": {"y_lo": -1.3, "y_hi": 1.3},
+         "bowed_apart_inverse": {"bow": 0.1}}
 # the paper's plant (Section 6) as an hwid model: the base of the paper-rig tests
 PAPER = {"kind": "hammerstein_wiener",
          "input_nonlinearity": {"type": "backlash", "slope_up": 1.0, "slope_down": 1.0, "d_plus": 0.5, "d_minus": -0.5},
@@ -236,14 +237,16 @@ class _InverseRig(_Rig):
         self.u_prev = None
         self.actuator = None
 
-    def inverse(self, u, dt):
+    def inverse(self, u, dt, bow=None):
+        """``bow``: per sample, how far each branch is moved away from the other."""
         v = np.empty_like(u)
+        bow = np.zeros_like(u) if bow is None else bow
         g, prev = self.gear, (u[0] if self.u_prev is None else self.u_prev)
         for i, ui in enumerate(u):
             if ui > prev:
-                g = ui / 1.0 + 0.2
+                g = ui / 1.0 + 0.2 + bow[i]
             elif ui < prev:
-                g = ui / 1.3 - 0.3
+                g = ui / 1.3 - 0.3 - bow[i]
             prev = ui
             v[i] = g
         self.gear, self.u_prev = g, prev
@@ -251,6 +254,28 @@ class _InverseRig(_Rig):
         w = signal.lfilter([1 - a], [1, -a], np.r_[v[0], v[:-1]], zi=[a * v[0]])[0]
         return 0.8 * w - 0.1 * w ** 3
 
+
+
+# the Backlash-Inverse plant of :class:`_InverseRig` as an hwid model
+INVERSE = {"kind": "hammerstein_wiener",
+           "input_nonlinearity": {"type": "backlash_inverse", "slope_up": 1.0, "slope_down": 1.3,
+                                  "d_plus": 0.2, "d_minus": -0.3},
+           "linear": {"num": [1.0], "den": [0.8, 1.0]},
+           "output_nonlinearity": {"polynomial": [0, 0.8, 0, -0.1]},
+           "noise": {"std": _InverseRig.NOISE}}
+
+
+def bowed_apart_inverse(u, dt):
+    """The Backlash-Inverse plant with each branch of its direction map bowed away from the other
+    by ``0.1 (1 - (u / 1.5)^2)`` (a parabola, most at u = 0, none at the range's ends): the jump
+    between the branches is 0.2 larger in the middle and 0.13 larger on average, which no bend
+    that keeps the mean jump reaches. State carried over."""
+    if "bowed_apart_inverse" not in _RIGS:
+        _RIGS["bowed_apart_inverse"] = _InverseRig(zlib.crc32(b"bowed_apart_inverse"))
+    r = _RIGS["bowed_apart_inverse"]
+    u = np.asarray(u, float)
+    bow = TRUTH["bowed_apart_inverse"]["bow"] * (1.0 - (np.clip(u, -1.5, 1.5) / 1.5) ** 2)
+    return r.inverse(u, dt, bow) + r.NOISE * r.rng.standard_normal(u.size)
 
 
 def rate_limit_inverse(u, dt):

@@ -122,6 +122,12 @@ class Effect:
         ``theta`` (this member's fitted parameters) in its parameters; None for a single effect."""
         return None
 
+    def loosen(self, theta) -> tuple["Effect", np.ndarray] | None:
+        """For a family with one freedom beyond its degree: the member with it, in the parameters
+        of ``theta`` (this member's fit, the new parameter zero); None where there is none or it is
+        free already. Tried against a given model only (:meth:`hwid.diagnose.rank.EffectFitter.fit`)."""
+        return None
+
     def at_defining_bound(self, theta) -> bool:
         """Whether the fit pressed against a bound that defines the effect (a "lightly damped"
         mode at the largest damping allowed): it then stands in for something else."""
@@ -274,12 +280,14 @@ class CurvedBorders(Effect):
     #: ill-determined by a diagnosis's levels (degree 8 pressed its bounds on a tanh bend)
     DEGREES = (2, 4, 6)
 
-    def __init__(self, degree: int = 2):
+    def __init__(self, degree: int = 2, play: bool = False):
         k = int(degree)
         super().__init__("curved_borders", "input",
-                         ("c0",) + tuple(f"c{j}_{side}" for side in ("up", "down") for j in range(1, k + 1)),
+                         ("c0",) + tuple(f"c{j}_{side}" for side in ("up", "down") for j in range(1, k + 1))
+                         + (("play",) if play else ()),
                          "the borders of F are curves instead of straight lines", interacts=("d_plus", "d_minus"))
         object.__setattr__(self, "degree", k)
+        object.__setattr__(self, "play", bool(play))
 
     def bounds(self, sc):
         n = len(self.params)
@@ -308,7 +316,28 @@ class CurvedBorders(Effect):
         out[0] = th[0]
         out[1:1 + k] = th[1:1 + k]
         out[1 + k2:1 + k2 + k] = th[1 + k:1 + 2 * k]
+        if self.play:
+            out[-1] = th[1 + 2 * k]
         return e, out
+
+    def loosen(self, theta) -> tuple["CurvedBorders", np.ndarray] | None:
+        """This degree with the play's width free as well (``play``: the borders' shifts apart,
+        in the bend's units), started from this member's fit; None if it is free already.
+
+        The bend's own terms keep the play's width as the model has it: a widening alone is a
+        different backlash, or a dead zone's (:class:`InputDeadzone`). But a real border that bends
+        does not keep its mean place, and where one border bends one way and the other the other,
+        the play widens on average: the blind check's bent borders of a Backlash-Inverse, bowed
+        apart, were `unexplained` from their logs with their own simulator as ``--model`` on four
+        judged seeds (the bend explained 0.18-0.54, leaving 3.4-11x the floor), and taken to
+        1.0-1.04x with the width free. Each step of the bend's growth tries the next degree and
+        this, from the member so far, and takes the one the fit experiments' criterion prefers."""
+        if self.play:
+            return None
+        e = CurvedBorders(self.degree, play=True)
+        object.__setattr__(e, "_scale", self._scale)
+        object.__setattr__(e, "_fit_span", self._fit_span)
+        return e, np.r_[np.asarray(theta, float), 0.0]
 
     def _bend_basis(self, u) -> np.ndarray:
         """The bend's basis on the input ``u``: column ``j`` is ``P_j(s)`` over the fit span,
@@ -339,7 +368,8 @@ class CurvedBorders(Effect):
         sc = self._scale
         th = np.asarray(theta, float)
         k = self.degree
-        c_up, c_dn = np.r_[th[0], th[1:1 + k]], np.r_[th[0], th[1 + k:1 + 2 * k]]
+        wider = th[1 + 2 * k] if self.play else 0.0
+        c_up, c_dn = np.r_[th[0] - wider, th[1:1 + k]], np.r_[th[0] + wider, th[1 + k:1 + 2 * k]]
         B = self._bend_basis(u)
         if F.type == "backlash":
             up = F.ascending(u) + F.slope_up * sc[1] * (B @ c_up)
@@ -357,7 +387,7 @@ class CurvedBorders(Effect):
 
     def _like(self, degree: int, scale=None, fit_span=None) -> "CurvedBorders":
         """The family's member of ``degree`` on this one's input scaling (or the one given)."""
-        e = CurvedBorders(degree)
+        e = CurvedBorders(degree, self.play)
         object.__setattr__(e, "_scale", self._scale if scale is None else scale)
         object.__setattr__(e, "_fit_span", self._fit_span if fit_span is None else fit_span)
         return e

@@ -369,23 +369,29 @@ class EffectFitter(HRefit):
     # ------------------------------------------------------------------------------------ fitting
     def fit(self, eff: effect_models.Effect) -> Candidate:
         """The effect fitted on the fit experiments and scored on the validation ones. A family of
-        nested effects (:meth:`Effect.grow`: a bend's degree) grows while the fit experiments'
-        criterion :meth:`fit_criterion` improves, each member started from the one before, with
-        the samples counted as independent as the smaller member's residual on the fit experiments
-        is (:meth:`n_eff_residual`)."""
+        nested effects (:meth:`Effect.grow`: a bend's degree; and, with a given model,
+        :meth:`Effect.loosen`: the play's width) grows while the fit experiments' criterion
+        :meth:`fit_criterion` improves, each step the better of the two, each member started from
+        the one before, with the samples counted as independent as the smaller member's residual
+        on the fit experiments is (:meth:`n_eff_residual`). An identified model's refit moves F's
+        borders, which the looser bend's freedom would only repeat."""
         if eff.disturbance:
             return self._fit_drift(eff)
         best = self._fit_one(eff)
         while True:
-            nxt = eff.grow(best.theta[:len(eff.params)])
-            if nxt is None:
-                return best
-            bigger, own = nxt
-            cand = self._fit_one(bigger, [np.r_[own, best.theta[len(eff.params):]]])
             n = self.n_eff_residual(eff, best)
-            if self.fit_criterion(cand, n) >= self.fit_criterion(best, n):
+            steps = [eff.grow] + ([] if self.refit_g else [eff.loosen])
+            tried = []
+            for step in steps:
+                nxt = step(best.theta[:len(eff.params)])
+                if nxt is not None:
+                    bigger, own = nxt
+                    cand = self._fit_one(bigger, [np.r_[own, best.theta[len(eff.params):]]])
+                    tried.append((self.fit_criterion(cand, n), bigger, cand))
+            tried = [t for t in tried if t[0] < self.fit_criterion(best, n)]
+            if not tried:
                 return best
-            eff, best = bigger, cand
+            _, eff, best = min(tried, key=lambda t: t[0])
 
     @property
     def n_eff_fit(self) -> float:
