@@ -122,7 +122,8 @@ def effect_params(effect: str, b: dict, rng: np.random.Generator) -> dict:
     if effect == "sensor_saturation":
         ylo, yhi = _y_range(b)
         m = max(abs(ylo), abs(yhi)) * U(0.65, 0.85)
-        return {"lo": -m, "hi": m}
+        # an ADC reads its end codes exactly; a clipping amplifier before a noisy converter does not
+        return {"lo": -m, "hi": m, "rail": str(rng.choice(["exact", "noisy"]))}
     if effect == "drift":
         return {"time_s": U(60, 300), "std": b["noise"]["std"] * U(4, 8)}
     if effect == "hysteretic_friction":

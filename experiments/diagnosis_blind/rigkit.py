@@ -175,6 +175,9 @@ def run(p: dict, st: dict, u, dt: float) -> np.ndarray:
         st["drift"] = dr[-1]
         y = y + dr
     if e == "sensor_saturation":
-        y = np.minimum(np.maximum(y, ep["lo"]), ep["hi"])
+        if ep.get("rail", "exact") == "noisy":     # the clip before the noise: the rails are noisy too
+            y = np.minimum(np.maximum(y - noise, ep["lo"]), ep["hi"]) + noise
+        else:
+            y = np.minimum(np.maximum(y, ep["lo"]), ep["hi"])
     st["t"] = t[-1] + dt if n else st["t"]
     return y
