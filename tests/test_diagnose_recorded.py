@@ -99,6 +99,21 @@ def test_a_log_that_opens_on_the_sensors_rail_names_the_clip(tmp_path):
     assert s["verdict"]["effect"] == "sensor_saturation" and "rail" in s["verdict"]["why"]
 
 
+def test_a_small_gap_short_of_five_sigma_is_named_by_the_second_test(tmp_path):
+    """An actuator slewing at 16 units/s (the range in a fifth of a second), the rig's own model as
+    ``--model``: its gap is 1.2x the noise power, over the 10 % that matters, but a log's validation
+    part is too short for the first test's 5 sigma (z = 4.6). The second test, the best candidate's
+    likelihood ratio on the validation part, finds it (943 against 25), and the rate is named."""
+    cfg = config.load(logs.write_lab(tmp_path, "mild", rate=16.0, seed=6))
+    s = diagnose(cfg, tmp_path / "out", model=logs.write_model(tmp_path), echo=_quiet)
+    t = s["test"]
+    assert 1.1 < t["power_ratio"] < 1.3 and t["z"] < 5
+    assert t["by_effect"]["effect"] == "rate_limit" and t["by_effect"]["likelihood_ratio"] > 25
+    assert s["verdict"]["effect"] == "rate_limit"
+    assert abs(s["candidates"][0]["params"]["rate"] / 16.0 - 1) < 0.05
+    assert s["gap_after"] < 1.05 * s["noise_floor"]
+
+
 def test_plain_log_with_coloured_noise_is_no_false_alarm(tmp_path):
     """AR(1) noise (lag-1 coefficient 0.5, as on the blind check's asymmetric base), identified
     from the log: the floor carries the noise's correlation, and no effect is credited with what
