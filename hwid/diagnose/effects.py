@@ -128,6 +128,12 @@ class Effect:
         free already. Tried against a given model only (:meth:`hwid.diagnose.rank.EffectFitter.fit`)."""
         return None
 
+    def other_readings(self, theta) -> list[np.ndarray]:
+        """The effect's other readings of the same fit (``theta``) that the fit experiments may not
+        tell from it: a choice about the rig, not a parameter that moves smoothly
+        (:meth:`hwid.diagnose.rank.EffectFitter.fit`). None for most effects."""
+        return []
+
     def at_defining_bound(self, theta) -> bool:
         """Whether the fit pressed against a bound that defines the effect (a "lightly damped"
         mode at the largest damping allowed): it then stands in for something else."""
@@ -200,6 +206,13 @@ class RateLimit(Effect):
     def starts(self, sc):
         lo, hi = self.bounds(sc)
         return _grid(np.geomspace(lo[0], hi[0], 14), [0.0, 1.0])
+
+    def other_readings(self, theta) -> list[np.ndarray]:
+        """The actuator reset at every call where the fit had it carried over, and the other way
+        round: where each fit experiment starts at the input the one before ended on, the two are
+        the same there, and only experiments that do not join tell them apart."""
+        th = np.asarray(theta, float)
+        return [np.r_[th[0], 0.0 if th[1] >= 0.5 else 1.0]]
 
     def simulate(self, sim, theta, i):
         u, c, prev = sim.inputs[i], float(theta[1]), sim.before(i)
