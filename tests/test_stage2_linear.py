@@ -279,3 +279,14 @@ def test_stage1_uncertainty_is_propagated(paper_cfg):
     noise_z = [(h["estimates"]["nls"]["gain"] - g) / np.sqrt(h["estimates"]["nls"]["cov_noise"][0, 0])
                for h, g in zip(res.harmonics, _truth(cfg, res.frequencies)[0])]
     assert max(abs(z) for z in noise_z) > 4
+
+
+def test_a_sine_whose_output_rests_on_the_sensors_rail_is_said():
+    """A clipping sensor (exact rails at +-0.4; h reaches +-0.78) on the synthetic sine of eq. (30c)'s h: stage 2
+    says which rail the output rests on and for how long; the same sine unclipped says nothing."""
+    rng = np.random.default_rng(np.random.SeedSequence(7))
+    rec, s, nl = next(_synthetic((0, 0.5, 0, -3.36, 0, 6.4), 1.0, 0.8, 1.16, 1.0, 0.05, 6, 0.01, rng, runs=1))
+    clipped = Record(rec.name, rec.dt, rec.u, np.clip(rec.y, -0.4, 0.4))
+    said = [m for m in LinearEstimator(hold_correction=False).fit(clipped, s, nl).warnings_ if "rail" in m]
+    assert len(said) == 2 and "low rail (-0.4)" in said[0] and "high rail (0.4)" in said[1]
+    assert not [m for m in LinearEstimator(hold_correction=False).fit(rec, s, nl).warnings_ if "rail" in m]

@@ -20,8 +20,8 @@ from hwid.diagnose.log_drift import (drift_from_residual, drift_leaves_little, d
 from hwid.diagnose.modelsim import ModelSim
 from hwid.diagnose.result import DiagnosisResult
 from hwid.diagnose.sim_side import load_model
-from hwid.diagnose.verdict import (Candidate, alternative_baseline, eligible, indistinguishable, refloor,
-                                    simplest_in_group)
+from hwid.diagnose.verdict import (Candidate, alternative_baseline, eligible, indistinguishable, named_from_rails,
+                                    refloor, simplest_in_group)
 from hwid.diagnose.verdict import verdict as decide_verdict
 from hwid.identify import rails
 from hwid.plant import make_plant
@@ -306,7 +306,7 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
             echo(why)
             verdict = "unexplained"
     if verdict == "none" and on_rails:
-        verdict, why = _named_from_rails(cands, on_rails, val.design.dt, echo) or (verdict, why)
+        verdict, why = named_from_rails(cands, on_rails, val.design.dt, echo) or (verdict, why)
     if confirmation is not None:
         cost = {**cost, "plant_calls_confirmation": confirmation.runs,
                 "rig_seconds_confirmation": confirmation.rig_seconds}
@@ -345,20 +345,6 @@ def _outputs_seen(val: Validation, origin: dict) -> tuple[list, list]:
         ys.append(np.asarray(r.y, float)[int((getattr(r, "attrs", None) or {}).get("pre", 0)):])
         names.append(r.name)
     return ys, names
-
-
-def _named_from_rails(cands, on_rails, dt: float, echo):
-    """``(sensor_saturation, why)`` where the gap test found nothing but the output rested on a
-    sensor rail (:mod:`hwid.identify.rails`): the rig clipped where the validation experiments do not
-    show it (a log whose clipped stretch lies in its opening, where the model's state is unknown),
-    and a model without the sensor's range is missing it; None if that effect was not fitted."""
-    named = next((c for c in cands if c.effect == "sensor_saturation"), None)
-    if named is None:
-        return None
-    why = (f"{rails.describe(on_rails, dt)}: the sensor clips and the model does not; sensor_saturation is named "
-           "from the rails, as the validation experiments show no gap")
-    echo(why)
-    return named, why
 
 
 def _refit_view(val: Validation, fitter) -> tuple[list, list]:

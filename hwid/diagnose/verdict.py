@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hwid.identify.rails import describe
+
 
 @dataclass
 class Candidate:
@@ -262,3 +264,17 @@ def simplest_in_group(verdict, groups: list[dict], cands: list[Candidate]):
 #: the least share of the verdict's explained fraction a simpler member of its group must explain
 #: to be named instead (:func:`simplest_in_group`)
 SIMPLER_SHARE = 0.5
+
+
+def named_from_rails(cands, on_rails, dt: float, echo):
+    """``(sensor_saturation, why)`` where the gap test found nothing but the output rested on a
+    sensor rail (:mod:`hwid.identify.rails`): the rig clipped where the validation experiments do not
+    show it (a log whose clipped stretch lies in its opening, where the model's state is unknown),
+    and a model without the sensor's range is missing it; None if that effect was not fitted."""
+    named = next((c for c in cands if c.effect == "sensor_saturation"), None)
+    if named is None:
+        return None
+    why = (f"{describe(on_rails, dt)}: the sensor clips and the model does not; sensor_saturation is named "
+           "from the rails, as the validation experiments show no gap")
+    echo(why)
+    return named, why

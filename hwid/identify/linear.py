@@ -39,6 +39,7 @@ from hwid.identify.known import KnownNonlinear
 from hwid.identify.harmonics import (DistortedHarmonics, HarmonicFit, HarmonicModel, distorted_harmonics,
                                      fit_harmonics, period_sums, span_projector)
 from hwid.identify.lm import lm
+from hwid.identify.rails import find_rails
 from hwid.identify.result import LinearResult
 from hwid.identify.sine_runs import run_sines
 
@@ -190,6 +191,10 @@ class LinearEstimator:
         if hf.periodicity_p < 1e-3:
             self.data_warnings_.append(f"omega = {omega:g} rad/s: the response is not periodic (first half of the "
                                        f"periods differs from the second, p = {hf.periodicity_p:.2g})")
+        for rail in find_rails([y]):
+            self.data_warnings_.append(f"omega = {omega:g} rad/s: the output rests on the sensor's {rail.side} rail "
+                                       f"({rail.value:.6g}) for {rail.samples} samples: these harmonics are a "
+                                       f"clipped output's, not h(G w)'s; lower protocols.sine.amplitude")
         return self.refit(nonlinear, g_model)
 
     def _distortion(self, V, g_model):
