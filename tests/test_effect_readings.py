@@ -33,9 +33,6 @@ class _Fitter:
         crit, gap = self.scores[float(theta[1])]
         return SimpleNamespace(theta=np.asarray(theta, float), k=2.0, crit=crit, gap_after=gap)
 
-    def n_eff_residual(self, eff, c):
-        return 1000.0
-
     def fit_criterion(self, c, n):
         return c.crit
 
@@ -50,5 +47,5 @@ class _Fitter:
 ])
 def test_the_reading_kept(other_fit, other_gap, kept):
     f = _Fitter({1.0: (0.0, 0.037), 0.0: (other_fit, other_gap)})
-    best = f._reading(RateLimit(), f._cand([1.48, 1.0]))
+    best = f._reading(RateLimit(), f._cand([1.48, 1.0]), 1000.0)
     assert best.theta[1] == kept

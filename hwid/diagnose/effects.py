@@ -131,7 +131,7 @@ class Effect:
     def other_readings(self, theta) -> list[np.ndarray]:
         """The effect's other readings of the same fit (``theta``) that the fit experiments may not
         tell from it: a choice about the rig, not a parameter that moves smoothly
-        (:meth:`hwid.diagnose.rank.EffectFitter.fit`). None for most effects."""
+        (:meth:`hwid.diagnose.rank.EffectFitter.fit`). Empty for most effects."""
         return []
 
     def at_defining_bound(self, theta) -> bool:
@@ -347,10 +347,7 @@ class CurvedBorders(Effect):
         this, from the member so far, and takes the one the fit experiments' criterion prefers."""
         if self.play:
             return None
-        e = CurvedBorders(self.degree, play=True)
-        object.__setattr__(e, "_scale", self._scale)
-        object.__setattr__(e, "_fit_span", self._fit_span)
-        return e, np.r_[np.asarray(theta, float), 0.0]
+        return self._like(self.degree, play=True), np.r_[np.asarray(theta, float), 0.0]
 
     def _bend_basis(self, u) -> np.ndarray:
         """The bend's basis on the input ``u``: column ``j`` is ``P_j(s)`` over the fit span,
@@ -398,9 +395,10 @@ class CurvedBorders(Effect):
     _scale = (0.0, 1.0)              # centre and half-width of the input range: s = (u - centre) / half-width
     _fit_span = (-np.inf, np.inf)    # the fit experiments' input range in s
 
-    def _like(self, degree: int, scale=None, fit_span=None) -> "CurvedBorders":
-        """The family's member of ``degree`` on this one's input scaling (or the one given)."""
-        e = CurvedBorders(degree, self.play)
+    def _like(self, degree: int, scale=None, fit_span=None, play=None) -> "CurvedBorders":
+        """The family's member of ``degree`` on this one's input scaling (or the one given), with
+        the play's width free as this one has it (or as given)."""
+        e = CurvedBorders(degree, self.play if play is None else play)
         object.__setattr__(e, "_scale", self._scale if scale is None else scale)
         object.__setattr__(e, "_fit_span", self._fit_span if fit_span is None else fit_span)
         return e

@@ -394,19 +394,19 @@ class EffectFitter(HRefit):
                     tried.append((self.fit_criterion(cand, n), bigger, cand))
             tried = [t for t in tried if t[0] < self.fit_criterion(best, n)]
             if not tried:
-                return self._reading(eff, best)
+                return self._reading(eff, best, n)
             _, eff, best = min(tried, key=lambda t: t[0])
 
-    def _reading(self, eff, best: Candidate) -> Candidate:
+    def _reading(self, eff, best: Candidate, n: float) -> Candidate:
         """``best``, or another reading of the same fit (:meth:`Effect.other_readings`: a rate
         limit's actuator reset at every call rather than carried over) that fits the fit
         experiments as well (its criterion within :data:`SAME_FIT` of ``best``'s) and predicts the
         validation experiments better. Where the fit experiments cannot tell the two apart, the
         descent keeps whichever start it reached first: a judged rig's actuator, reset at every
         call, was fitted carried over at its exact rate (1.4832 units/s against 1.4834), which left
-        a multisine and a repeat of the steps 6-10x the floor and the verdict `unexplained`."""
+        a multisine and a repeat of the steps 6-10x the floor and the verdict `unexplained`. ``n``:
+        the independent samples of ``best``'s residual (:meth:`n_eff_residual`)."""
         k = len(eff.params)
-        n = self.n_eff_residual(eff, best)
         for theta in eff.other_readings(best.theta[:k]):
             c = self._score(eff, np.r_[theta, best.theta[k:]], best.k)
             if self.fit_criterion(c, n) - self.fit_criterion(best, n) < SAME_FIT and c.gap_after < best.gap_after:
