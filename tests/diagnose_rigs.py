@@ -23,6 +23,7 @@ TRUTH = {"sensor_lag": {"tau_s": 1.5}, "rate_limit": {"rate": 0.4}, "rate_limit_
          "sensor_saturation": {"y_lo": -0.55, "y_hi": 0.55}, "resonance": {"omega_n": 4.0, "zeta": 0.05},
          "rate_limit_inverse": {"rate": 5.6}, "input_saturation_paper": {"u_lo": -1.23, "u_hi": 0.73},
          "bent_borders": {"up": 0.06, "down": -0.04}, "sensor_saturation_paper": {"y_lo": -1.3, "y_hi": 1.3},
+         "input_deadzone_paper": {"delta": 0.21},
          "bowed_apart_inverse": {"bow": 0.1}}
 # the paper's plant (Section 6) as an hwid model: the base of the paper-rig tests
 PAPER = {"kind": "hammerstein_wiener",
@@ -324,6 +325,17 @@ def input_saturation_paper(u, dt):
     u = np.clip(np.asarray(u, float), t["u_lo"], t["u_hi"])
     return r.paper(u, dt) + r.noise(u.size)
 
+
+
+def input_deadzone_paper(u, dt):
+    """The paper's plant behind an actuator that does not move for |u| < 0.21: the play of 0.5
+    each side spans zero, so every border, read against u, has a flat step in it."""
+    if "input_deadzone_paper" not in _RIGS:
+        _RIGS["input_deadzone_paper"] = _PaperRig(zlib.crc32(b"input_deadzone_paper"))
+    r = _RIGS["input_deadzone_paper"]
+    dz = TRUTH["input_deadzone_paper"]["delta"]
+    u = np.asarray(u, float)
+    return r.paper(np.sign(u) * np.maximum(np.abs(u) - dz, 0.0), dt) + r.noise(u.size)
 
 
 def sensor_saturation_paper(u, dt):

@@ -23,9 +23,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hwid.blocks.linear import LinearBlock
+from hwid.blocks.deadzone import deadzone
 from hwid.blocks.slew import slewed
-from hwid.diagnose.modelsim import (ModelSim, _direction_arrays, _play_arrays, _since_crossed, deadzone, first_order,
-                                    smooth)
+from hwid.diagnose.modelsim import ModelSim, _direction_arrays, _play_arrays, _since_crossed, first_order, smooth
 from hwid.model import InputNonlinearity
 
 CATALOGUE = ("input_saturation", "rate_limit", "input_deadzone", "curved_borders", "time_delay",

@@ -64,12 +64,6 @@ def _since_crossed(u, F: InputNonlinearity) -> int:
     return int(done[0]) + 1 if done.size else int(u.size)
 
 
-def deadzone(u, delta: float) -> np.ndarray:
-    """0 for ``|u| < delta``, ``u - delta sign(u)`` beyond."""
-    u = np.asarray(u, float)
-    return np.sign(u) * np.maximum(np.abs(u) - delta, 0.0)
-
-
 def first_order(x, tau: float, dt: float) -> np.ndarray:
     """``1/(tau s + 1)`` applied to ``x`` (exact for a zero-order-held input), from equilibrium;
     a matrix is filtered column by column (a design matrix whose columns all pass the lag).

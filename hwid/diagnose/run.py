@@ -359,9 +359,11 @@ def _refit_view(val: Validation, fitter) -> tuple[list, list]:
 
 
 def actuator_hints(origin: dict) -> dict:
-    """Starts of the effects whose parameters the whole fit from logs found and took out of the
-    model (``input_rate_taken_out``: ``rate_limit``, carried or not; ``input_clip_taken_out``:
-    ``input_saturation``), for :class:`hwid.diagnose.rank.EffectFitter`."""
+    """Starts of the effects whose parameters the identification found and took out of the model
+    (the whole fit from logs: ``input_rate_taken_out``, ``rate_limit``, carried or not;
+    ``input_clip_taken_out``, ``input_saturation``; stage 1 behind a dead zone,
+    :mod:`hwid.identify.deadzone_ahead`: ``input_deadzone_taken_out``, ``input_deadzone``), for
+    :class:`hwid.diagnose.rank.EffectFitter`."""
     hints = {}
     rate = float(origin.get("input_rate_taken_out", 0.0) or 0.0)
     if rate > 0:
@@ -369,6 +371,9 @@ def actuator_hints(origin: dict) -> dict:
     clip = origin.get("input_clip_taken_out")
     if clip:
         hints["input_saturation"] = [list(map(float, clip))]
+    delta = float(origin.get("input_deadzone_taken_out", 0.0) or 0.0)
+    if delta > 0:      # the model's borders are those behind it: none of it absorbed
+        hints["input_deadzone"] = [[delta, 0.0]]
     return hints
 
 

@@ -66,6 +66,7 @@ def identified_model(cfg, plant, out_dir=None, echo=print) -> tuple[HWModel, dic
     """Identify the model from ``plant`` with the config's staircases and sines (both stages); the
     results go to ``out_dir`` as ``nonlinear.h5`` and ``linear.h5``. The origin dict carries the
     identification's records (``records``), which the diagnosis uses and then drops."""
+    from hwid.identify.deadzone_ahead import ThroughDeadZone, find_deadzone
     from hwid.identify.linear import identify_linear
     from hwid.identify.sine_runs import run_sines, unsafe_precompensator
     from hwid.identify.nonlinear import identify_nonlinear
@@ -74,6 +75,13 @@ def identified_model(cfg, plant, out_dir=None, echo=print) -> tuple[HWModel, dic
                         f"needs both protocols.staircase and protocols.sine")
     t0 = time.perf_counter()
     nonlinear, nonlinear_records = identify_nonlinear(cfg, plant=plant)
+    ahead = find_deadzone(cfg, nonlinear, nonlinear_records)
+    notes: list = []
+    drive = plant        # what stage 2's sines go through: behind a dead zone, its inverse first
+    if ahead is not None:
+        echo(ahead.note())
+        notes.append(ahead.note())
+        nonlinear, drive = ahead.result, ThroughDeadZone(plant, ahead.delta)
     unsafe = unsafe_precompensator(cfg, nonlinear)
     if unsafe:
         # stage 1 did not identify F: the sines run as they are, for the whole fit below
@@ -82,8 +90,10 @@ def identified_model(cfg, plant, out_dir=None, echo=print) -> tuple[HWModel, dic
         _, linear_records = run_sines(cfg, None, plant=plant)
         records = [r for r in list(nonlinear_records) + list(linear_records) if r.y is not None]
         return _whole_instead(cfg, records, out_dir, unsafe, echo)
-    linear, linear_records = identify_linear(cfg, nonlinear, plant=plant)
-    cfg, linear, linear_records = _sines_off_the_rails(cfg, nonlinear, linear, linear_records, plant, echo)
+    linear, linear_records = identify_linear(cfg, nonlinear, plant=drive)
+    cfg, linear, linear_records = _sines_off_the_rails(cfg, nonlinear, linear, linear_records, drive, echo)
+    if ahead is not None:      # the records as the plant received them, for the diagnosis and the files
+        linear_records = [drive.sent.get(r.name, r) for r in linear_records]
     if out_dir is not None:
         write_nonlinear(Path(out_dir) / "nonlinear.h5", cfg, nonlinear, nonlinear_records)
         write_linear(Path(out_dir) / "linear.h5", cfg, linear, linear_records)
@@ -96,12 +106,13 @@ def identified_model(cfg, plant, out_dir=None, echo=print) -> tuple[HWModel, dic
     why = g_undetermined(linear)
     if why and out_dir is not None:
         return _whole_instead(cfg, records, out_dir, why, echo)
-    notes: list = []
-    model = model_from_stages(nonlinear, linear, notes)
-    for note in notes:
+    stage_notes: list = []
+    model = model_from_stages(nonlinear, linear, stage_notes)
+    for note in stage_notes:
         echo(note)
-    return model, {"source": "identified", "w_range": w_range, "notes": notes,
-                   "u_range": [float(min(levels)), float(max(levels))], "records": records}
+    return model, {"source": "identified", "w_range": w_range, "notes": notes + stage_notes,
+                   "u_range": [float(min(levels)), float(max(levels))], "records": records,
+                   "input_deadzone_taken_out": ahead.delta if ahead is not None else 0.0}
 
 
 def _sines_off_the_rails(cfg, nonlinear, linear, records, plant, echo):
