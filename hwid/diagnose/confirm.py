@@ -1,4 +1,6 @@
-"""The confirmation of a live diagnosis's verdict: the named effect must not make any experiment worse.
+"""The confirmation of a diagnosis's verdict: the named effect must not make any experiment worse.
+Applied with a given model and with a model identified on the live rig; not with one identified
+from a log, whose fit and validation parts share the log.
 
 An effect that is the cause of the gap brings the model closer to the plant on every experiment. One
 that only stands in for the cause removes the gap where it is largest and moves the model away from
