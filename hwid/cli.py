@@ -107,6 +107,7 @@ def identify_nonlinear(config: Path = typer.Argument(..., help="Config YAML."),
     """Stage 1 (Section 4): staircases -> h, the backlash borders and their type; OUT/nonlinear.h5.
     For a recorded plant: stage 1 from its levels in whatever order they were recorded; OUT/history.h5."""
     from hwid.config import load as load_config
+    from hwid.identify import deadzone_ahead
     from hwid.identify.nonlinear import identify_nonlinear as run_stage1
     from hwid.identify.result import format_summary
     from hwid.results import write_nonlinear
@@ -116,6 +117,7 @@ def identify_nonlinear(config: Path = typer.Argument(..., help="Config YAML."),
         _identify_history(cfg, out, json_out)
         return
     res, records = run_stage1(cfg, data=data, journal_dir=out / "rig_journal")
+    res = deadzone_ahead.noted(cfg, res, records)
     _say_stage1(res, write_nonlinear(out, cfg, res, records), json_out, format_summary(res))
 
 

@@ -19,6 +19,7 @@ from hwid.results import write_linear, write_nonlinear, write_simulation, write_
 
 def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
     """Run everything; return the paths written and the seconds each step took."""
+    from hwid.identify import deadzone_ahead
     from hwid.identify.linear import identify_linear
     from hwid.identify.nonlinear import identify_nonlinear
     from hwid.simulate import truth
@@ -33,11 +34,14 @@ def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
 
     t0 = time.perf_counter()
     nl, nl_records = identify_nonlinear(cfg, plant=plant)
+    nl = deadzone_ahead.noted(cfg, nl, nl_records)
     paths["nonlinear"] = write_nonlinear(out / "nonlinear.h5", cfg, nl, nl_records)
     paths["simulation"] = write_simulation(out / "simulation.h5", cfg, nl_records, truth(cfg))
     times["stage1"] = time.perf_counter() - t0
     echo(f"stage 1: {nl.type}, d+ = {nl.d_plus:.4f}, S^d = {nl.slope_down:.4f}, d- = {nl.d_minus:.4f}, "
          f"degree {nl.degree} ({times['stage1']:.1f} s)")
+    if "deadzone_ahead" in nl.fit:
+        echo(f"warning: {nl.warnings[-1]}")
 
     if cfg.protocols.sine is not None:
         import warnings

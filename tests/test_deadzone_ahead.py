@@ -35,9 +35,15 @@ def test_the_inverse_passes_through_the_dead_zone():
     assert deadzone_inverse(np.array([0.0]), 0.3)[0] == 0.0
 
 
-def test_stage_1_behind_the_dead_zone_finds_it_and_the_papers_borders(tmp_path):
-    cfg = _cfg(tmp_path, "input_deadzone_paper")
+@pytest.fixture(scope="module")
+def stage1(tmp_path_factory):
+    cfg = _cfg(tmp_path_factory.mktemp("dz"), "input_deadzone_paper")
     plain, records = identify_nonlinear(cfg)
+    return cfg, plain, records
+
+
+def test_stage_1_behind_the_dead_zone_finds_it_and_the_papers_borders(stage1):
+    cfg, plain, records = stage1
     assert plain.fit["overdispersion"] > deadzone_ahead.GROSS
     found = deadzone_ahead.find_deadzone(cfg, plain, records)
     assert found is not None
@@ -49,6 +55,18 @@ def test_stage_1_behind_the_dead_zone_finds_it_and_the_papers_borders(tmp_path):
     for name, true in (("d_plus", 0.5), ("slope_down", 1.0), ("d_minus", -0.5)):
         lo, hi = r.ci[name]
         assert lo <= true <= hi, (name, lo, hi)
+
+
+def test_stage_1_tells_its_user_of_the_dead_zone(stage1):
+    """`hwid identify-nonlinear` and `hwid run` keep the paper's model and say where its levels fit."""
+    cfg, plain, records = stage1
+    noted = deadzone_ahead.noted(cfg, plain, records)
+    assert (noted.d_plus, noted.d_minus, noted.degree) == (plain.d_plus, plain.d_minus, plain.degree)
+    assert "behind a dead zone ahead of F" in noted.warnings[-1]
+    found = noted.fit["deadzone_ahead"]
+    lo, hi = found["delta_ci"]
+    assert lo <= R.TRUTH["input_deadzone_paper"]["delta"] <= hi
+    assert abs(found["d_plus"] - 0.5) < 0.03 and abs(found["d_minus"] + 0.5) < 0.03 and found["degree"] == 5
 
 
 def test_a_plant_without_a_dead_zone_is_left_alone(tmp_path):
