@@ -52,8 +52,6 @@ def test_identified_rate_limit_named_with_its_rate(rate):
     assert s["gap_after"] < 0.5 * s["gap_before"]
     assert s["gap_after"] < 1.5 * s["noise_floor"]
     assert s["model_refit"] is not None and s["gap_model_refit"] < s["gap_before"]
-    # the confirmation applies to an identified model too: the right name makes no experiment worse
-    assert s["confirmation"] is None or not s["confirmation"]["contradicted"]
     # the noise floor from the repeats is the rig's
     assert abs(s["noise_floor"] - R.NOISE) < 0.15 * R.NOISE
 

@@ -299,7 +299,7 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
              f"parameters, {simplest.effect}, is named")
         verdict = simplest
     confirmation = None
-    if isinstance(verdict, Candidate) and not (identified and from_logs):
+    if not identified and isinstance(verdict, Candidate):
         confirmation = confirm.check(verdict, fitter, val, floor.sigma, floor.kappa, rerun, echo)
         if confirmation is not None and confirmation.contradicted:
             why = confirmation.why
