@@ -12,10 +12,9 @@ Where stage 1's fit is that far off (:data:`GROSS`), the same estimator is fitte
 mapped through dead zones of widths up to :data:`SPAN` times the largest level (a grid, then a finer
 one around its best); the width whose fit leaves the least misfit is kept where levels lie inside
 it (:data:`MIN_INSIDE`) and stage 1's fit behind it is consistent (:data:`CONSISTENT`) and
-:data:`GAIN` times better than the plain one. Stage 2 then
-drives the plant through the dead zone's inverse ahead of its pre-compensator
-(:class:`ThroughDeadZone`), so that F sees the pre-compensated sine, and G is read as the paper reads
-it. The model is F, G and h without the dead zone: the diagnosis leaves it to ``input_deadzone``,
+:data:`GAIN` times better than the plain one. Stage 2 then drives the plant through the dead zone's
+inverse ahead of its pre-compensator (:class:`ThroughDeadZone`), so that F sees the
+pre-compensated sine, and G is read as the paper reads it. The model is F, G and h without the dead zone: the diagnosis leaves it to ``input_deadzone``,
 started at the width found here.
 """
 from __future__ import annotations
@@ -36,17 +35,17 @@ GROSS = 20.0
 CONSISTENT = 5.0
 #: ... and at most the plain fit's divided by this
 GAIN = 5.0
+#: levels inside the dead zone (where the actuator does not move) it needs: its width is
+#: otherwise read from the step in the borders alone, which h's shape can trade against (a
+#: saturation between G's lags fitted the paper's levels behind a dead zone of 0.077 that one
+#: level lay in)
+MIN_INSIDE = 2
 #: widths tried: GRID of them up to SPAN x the largest |level| (the ``input_deadzone`` effect's
 #: bound), then a bounded search within a grid step of the best, to FINE of a step, in at most
 #: REFINE fits; each scored by the misfit of a fit with h of degree DEGREE. Stage 1's own choice
 #: of degree trades off against the width: a degree-8 h behind any width from 0.06 to 0.18 fitted
 #: the levels of the paper's plant behind a dead zone of 0.21 as well, by BIC, as the paper's
 #: degree-5 h behind 0.2; at one moderate degree the misfit has one valley, at the width.
-#: levels inside the dead zone (where the actuator does not move) it needs: its width is
-#: otherwise read from the step in the borders alone, which h's shape can trade against (a
-#: saturation between G's lags fitted the paper's levels behind a dead zone of 0.077 that one
-#: level lay in)
-MIN_INSIDE = 2
 SPAN = 0.4
 GRID = 16
 FINE = 0.05
