@@ -76,6 +76,15 @@ def test_a_plant_without_a_dead_zone_is_left_alone(tmp_path):
     assert deadzone_ahead.find_deadzone(cfg, plain, records) is None
 
 
+def test_a_clip_that_stage_1_cannot_fit_is_not_taken_for_a_dead_zone(tmp_path):
+    """The paper's plant behind an input clip: stage 1 is as far off as behind a dead zone, so the
+    search runs, and no width makes the levels fit."""
+    cfg = _cfg(tmp_path, "input_saturation_paper")
+    plain, records = identify_nonlinear(cfg)
+    assert plain.fit["overdispersion"] > deadzone_ahead.GROSS
+    assert deadzone_ahead.find_deadzone(cfg, plain, records) is None
+
+
 def test_stage_2_drives_the_plant_through_the_inverse():
     class Plant:
         def __init__(self):

@@ -14,8 +14,8 @@ one around its best); the width whose fit leaves the least misfit is kept where 
 it (:data:`MIN_INSIDE`) and stage 1's fit behind it is consistent (:data:`CONSISTENT`) and
 :data:`GAIN` times better than the plain one. Stage 2 then drives the plant through the dead zone's
 inverse ahead of its pre-compensator (:class:`ThroughDeadZone`), so that F sees the
-pre-compensated sine, and G is read as the paper reads it. The model is F, G and h without the dead zone: the diagnosis leaves it to ``input_deadzone``,
-started at the width found here.
+pre-compensated sine, and G is read as the paper reads it. The model is F, G and h without the
+dead zone: the diagnosis leaves it to ``input_deadzone``, started at the width found here.
 """
 from __future__ import annotations
 
