@@ -46,7 +46,8 @@ def lab_parts(hold: float = 4.0, lo: float = -1.5, hi: float = 1.5) -> list[np.n
 
 def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int = 0, parts=None,
               one_record: bool = False, ar: float = 0.0, carry: bool = False, linear: dict | None = None,
-              drift: tuple[float, float] | None = None, opening_rail: tuple[float, float] | None = None):
+              drift: tuple[float, float] | None = None, opening_rail: tuple[float, float] | None = None,
+              clip_between: tuple[float, float, float] | None = None):
     """Write ``NAME.csv`` and its recorded config ``NAME.yaml``; return the config path. ``ar``:
     the noise's lag-1 coefficient (AR(1) noise of s.d. :data:`SIGMA`; 0 is white). ``carry``: the
     rate-limited actuator runs on through the pauses (each part starts where the last left it),
@@ -54,7 +55,9 @@ def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int 
     ``drift``: ``(time_s, std)`` of an additive Ornstein-Uhlenbeck offset in y that runs on through
     the whole session (drawn after the noise, from its own generator). ``opening_rail``: ``(y, s)``,
     the first part's first ``s`` seconds read exactly ``y`` (a sensor at its rail while the rig came
-    into its range as the log began)."""
+    into its range as the log began). ``clip_between``: ``(tau1, tau2, level)``, G is the two lags
+    ``1/(tau1 s + 1)`` then ``1/(tau2 s + 1)`` with a clip at +-``level`` between them (no
+    catalogue effect; :func:`two_lags` is G for the model)."""
     rng = np.random.default_rng(seed)
     g = G if linear is None else linear
     m = HWModel(InputNonlinearity(F["type"], F["slope_up"], F["slope_down"], F["d_plus"], F["d_minus"]),
@@ -82,7 +85,11 @@ def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int 
             e[1:] *= np.sqrt(1 - ar * ar)
             for k in range(1, u.size):
                 e[k] += ar * e[k - 1]
-        y = m.simulate(ue, DT).x + SIGMA * e
+        if clip_between is None:
+            y = m.simulate(ue, DT).x + SIGMA * e
+        else:
+            v = m.simulate(ue, DT).v
+            y = np.polyval(H[::-1], _lags_with_clip(v, *clip_between)) + SIGMA * e
         if drift is not None:
             y = y + offset[ends[k] - u.size:ends[k]]
         if opening_rail is not None and k == 0:
@@ -102,7 +109,28 @@ def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int 
     return path
 
 
-def write_model(tmp_path):
+def two_lags(tau1: float, tau2: float) -> dict:
+    """G of two first-order lags in series (unit static gain)."""
+    return {"num": [1.0], "den": [tau1 * tau2, tau1 + tau2, 1.0]}
+
+
+def _lags_with_clip(v, tau1: float, tau2: float, level: float) -> np.ndarray:
+    """``v`` through ``1/(tau1 s + 1)``, a clip at +-``level``, then ``1/(tau2 s + 1)`` (exact
+    discretisation of each lag for a held input), both starting at rest at ``v[0]``."""
+    a1, a2 = np.exp(-DT / tau1), np.exp(-DT / tau2)
+    x1 = float(v[0])
+    x2 = float(np.clip(x1, -level, level))
+    out = np.empty_like(v)
+    for i, vi in enumerate(v):
+        out[i] = x2
+        x2 = a2 * x2 + (1 - a2) * min(max(x1, -level), level)
+        x1 = a1 * x1 + (1 - a1) * vi
+    return out
+
+
+def write_model(tmp_path, linear: dict | None = None):
+    """The rig's own simulator without its effect (``linear``: G in place of :data:`G`)."""
+    model = MODEL if linear is None else {"plant": {**MODEL["plant"], "linear": linear}}
     path = tmp_path / "model.yaml"
-    path.write_text(yaml.safe_dump(MODEL, sort_keys=False))
+    path.write_text(yaml.safe_dump(model, sort_keys=False))
     return path

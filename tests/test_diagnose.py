@@ -516,6 +516,7 @@ def _diagnose_paper_rig(tmp_path, driver: str, effects=None) -> dict:
                                      "levels_down": [round(float(x), 4) for x in np.linspace(1.2, -1.4, 11)[1:]],
                                      "hold": 30.0},
                        "sine": {"amplitude": 1.0, "frequencies": [0.02, 0.05, 0.1, 0.2], "periods": 3}}}
+    tmp_path.mkdir(parents=True, exist_ok=True)
     (tmp_path / "paper.yaml").write_text(yaml.safe_dump({"plant": R.PAPER}))
     (tmp_path / "cfg.yaml").write_text(yaml.safe_dump(d))
     return diagnose(config.load(tmp_path / "cfg.yaml"), tmp_path / "out", model=tmp_path / "paper.yaml",
@@ -539,16 +540,27 @@ def test_input_clip_on_the_paper_plant_found_by_the_profile_scan(tmp_path):
 
 
 
-def test_a_clip_between_the_lags_of_g_is_unexplained_though_a_static_clip_matches_at_rest(tmp_path):
+def test_a_clip_between_the_lags_of_g_is_unexplained_though_a_static_clip_matches_at_rest(tmp_path, monkeypatch):
     """The paper's plant with a clip at +-0.5 between G's two lags, the paper's plant as
     ``--model``. At rest a clip of the input does the same, and fitted so it takes the gap from
-    400x the floor to within 10 % of it; but the broadband multisine's fast swings stay below the
-    clip inside G, and the input clip makes that experiment worse than the model without it. The
-    confirmation (:mod:`hwid.diagnose.confirm`) finds that, and the verdict is `unexplained`."""
-    s = _diagnose_paper_rig(tmp_path, "clip_between_lags")
+    400x the floor to within 10 % of it; but what it leaves still follows the output's past (the
+    ``loop`` test on its residual, :func:`hwid.diagnose.confirm.dynamics_left`), and the broadband
+    multisine's fast swings stay below the clip inside G, so the input clip makes that experiment
+    worse than the model without it (the confirmation, :mod:`hwid.diagnose.confirm`). Either
+    refuses it on its own: the verdict is `unexplained`."""
+    s = _diagnose_paper_rig(tmp_path / "loop", "clip_between_lags")
     top = s["candidates"][0]
     assert top["effect"] in ("input_saturation", "curved_borders")
     assert top["explained_fraction"] > 0.99 and top["gap_after"] < 1.2 * s["noise_floor"]
+    loop = next(x for x in s["test"]["verdict_remainder"] if x["kind"] == "loop")
+    assert loop["p_value"] < confirm.LOOP_P
+    assert s["verdict"]["effect"] == "unexplained" and "past outputs" in s["verdict"]["why"]
+    assert s["gap_after"] == s["gap_before"] > 100 * s["noise_floor"]
+
+    monkeypatch.setattr(confirm, "LOOP_P", 0.0)     # the confirmation alone
+    s = _diagnose_paper_rig(tmp_path / "confirmation", "clip_between_lags")
+    top = s["candidates"][0]
+    assert top["effect"] in ("input_saturation", "curved_borders")
     c = s["confirmation"]
     assert c["contradicted"] and c["effect"] == top["effect"]
     assert c["experiment"].startswith("broadband_validation")

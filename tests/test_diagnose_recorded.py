@@ -14,7 +14,7 @@ import pytest
 import logs
 from hwid import config
 from hwid.cli import main
-from hwid.diagnose import diagnose
+from hwid.diagnose import confirm, diagnose
 from hwid.diagnose.verdict import Candidate, indistinguishable, paired_z
 from hwid.results import read_diagnosis
 
@@ -483,3 +483,18 @@ def test_a_drift_must_leave_little_more_than_noise():
     assert drift_leaves_little([drift(1.22, 0.96)], sigma, _quiet)
     assert drift_leaves_little([drift(0.88, 1.0)], sigma, _quiet)
     assert drift_leaves_little([Candidate("input_saturation", "input", {}, 0.05, 0.05, 0.1, 5.0, 2.0)], sigma, _quiet)
+
+
+def test_a_clip_between_the_lags_of_g_is_unexplained_though_a_clip_takes_the_gap_near_the_floor(tmp_path):
+    """G split into two lags with a clip between them (no catalogue effect), the true two-lag G as
+    ``--model``: a clip of the output takes most of the gap away, to within 1.5x the floor, but what
+    it leaves still follows the output's past (the ``loop`` test far below
+    :data:`hwid.diagnose.confirm.LOOP_P`): the verdict is `unexplained`, the reason said."""
+    cfg = config.load(logs.write_lab(tmp_path, "cbl", seed=5, clip_between=(0.5, 0.25, 0.8)))
+    s = diagnose(cfg, tmp_path / "out", model=logs.write_model(tmp_path, logs.two_lags(0.5, 0.25)), echo=_quiet)
+    top = s["candidates"][0]
+    assert top["explained_fraction"] > 0.85 and top["gap_after"] < 1.5 * s["noise_floor"] < s["gap_before"] / 4
+    loop = next(x for x in s["test"]["verdict_remainder"] if x["kind"] == "loop")
+    assert loop["p_value"] < confirm.LOOP_P
+    assert s["verdict"]["effect"] == "unexplained" and "past outputs" in s["verdict"]["why"]
+    assert s["gap_after"] == s["gap_before"]

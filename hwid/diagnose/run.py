@@ -92,9 +92,25 @@ class Validation:
         """What the model's validation residual looks like, from the tests on it
         (:mod:`hwid.diagnose.residual_structure`); computed once, asked by the drift from a log's
         residual, the generalisation veto and the result."""
-        segments = [residual_structure.Segment(self.exps[i].u, y, x, self.design.dt, self.exps[i].mask,
+        return self.remainder_of(self.sim_val.x)
+
+    def remainder_of(self, predictions, F=None) -> list[dict]:
+        """The tests on the validation residual left by ``predictions`` (a candidate's outputs).
+        With ``F`` (the model's input block), a record whose start was estimated from its opening
+        (:func:`hwid.diagnose.logs.with_starts`, fitted without the effect) is tested only from where
+        its start no longer matters: the input has spanned the play and G has settled 1.5 times."""
+        masks = [self.exps[i].mask for i in self.val_idx]
+        if F is not None:
+            from hwid.diagnose.logs import known_from
+            burn = max(int(round(1.5 * self.design.settle_s / self.design.dt)), 1)
+            for j, i in enumerate(self.val_idx):
+                pre = int(self.records[i].attrs.get("pre", 0)) if hasattr(self.records[i], "attrs") else 0
+                if pre:
+                    masks[j] = masks[j].copy()
+                    masks[j][:pre + known_from(self.exps[i].u[pre:], F, burn)] = False
+        segments = [residual_structure.Segment(self.exps[i].u, y, x, self.design.dt, m,
                                                self.exps[i].variable.get("omega"))
-                    for i, y, x in zip(self.val_idx, self.y_val, self.sim_val.x)]
+                    for i, y, x, m in zip(self.val_idx, self.y_val, predictions, masks)]
         return residual_structure.residual_structure(segments)
 
     @property
@@ -299,6 +315,13 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
              f"parameters, {simplest.effect}, is named")
         verdict = simplest
     confirmation = None
+    remainder = (val.remainder_of(verdict.predictions, sim_model.input) if not identified and isinstance(verdict, Candidate)
+                 else None)
+    left = confirm.dynamics_left(remainder, verdict.effect) if remainder is not None else ""
+    if left:
+        why = left
+        echo(why)
+        verdict = "unexplained"
     if not identified and isinstance(verdict, Candidate):
         confirmation = confirm.check(verdict, fitter, val, floor.sigma, floor.kappa, rerun, echo)
         if confirmation is not None and confirmation.contradicted:
@@ -321,6 +344,8 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
         summary["test"]["after_verdict"] = test_of(verdict.gap_after).to_dict()
     if why:
         summary["verdict"]["why"] = why
+    if remainder is not None:
+        summary["test"]["verdict_remainder"] = remainder
     if extra is not None:
         extra(fitter, cands, verdict, groups, summary)
     summary["cost"]["seconds_total"] = time.perf_counter() - t_start
