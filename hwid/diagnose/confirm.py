@@ -1,7 +1,8 @@
-"""The confirmation of a diagnosis's verdict with a given model: the named effect must not make any
-experiment worse. Not applied to an identified model, which is not the plant's: right names of a
-resonance and a sensor lag, fitted with the identified F, G and h refitted, made a sine worse (z 7.5
-and 8.1 on judged seed 9091) than the model refitted without them.
+"""The confirmation of a diagnosis's verdict with a given model: what the named effect leaves must
+not still follow the output's past (:func:`dynamics_left`), and the effect must not make any
+experiment worse (:func:`check`). Not applied to an identified model, which is not the plant's:
+right names of a resonance and a sensor lag, fitted with the identified F, G and h refitted, made a
+sine worse (z 7.5 and 8.1 on judged seed 9091) than the model refitted without them.
 
 An effect that is the cause of the gap brings the model closer to the plant on every experiment. One
 that only stands in for the cause removes the gap where it is largest and moves the model away from
