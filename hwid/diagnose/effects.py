@@ -102,6 +102,9 @@ class Effect:
     # its output moves in sample-sized kinks as a parameter changes (a slew, a clip, a fractional
     # delay): fitted with coarse finite differences first
     kinked = False      # a class attribute, not a field
+    # a memoryless change of the input's map (clip, dead zone, bent borders): with an identified
+    # model it is confirmed like a verdict with a given one (:func:`hwid.diagnose.confirm.check`)
+    static_input = False
     interacts: tuple[str, ...] = field(default=())
 
     def bounds(self, sc: Scale) -> tuple[np.ndarray, np.ndarray]:
@@ -160,6 +163,7 @@ def _grid(*axes) -> list[np.ndarray]:
 
 class InputSaturation(Effect):
     kinked = True
+    static_input = True
 
     def __init__(self):
         super().__init__("input_saturation", "input", ("u_lo", "u_hi"),
@@ -245,6 +249,7 @@ class InputDeadzone(Effect):
     """
 
     kinked = True
+    static_input = True
 
     def __init__(self):
         super().__init__("input_deadzone", "input", ("delta", "absorbed"),
@@ -288,6 +293,8 @@ class CurvedBorders(Effect):
     experiments' input range the bend goes on along its tangent at the range's end: the data say
     nothing of it there, and a polynomial's own continuation runs away (an S-shaped bend on the
     paper's plant, fitted to 4x the floor, left 85x on validation levels 15 % further out)."""
+
+    static_input = True
 
     #: the degrees tried, in order (each fit starts from the one before); beyond 6 the terms are
     #: ill-determined by a diagnosis's levels (degree 8 pressed its bounds on a tanh bend)

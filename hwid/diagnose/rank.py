@@ -599,15 +599,26 @@ class EffectFitter(HRefit):
         An effect is credited only with what it adds to the model it was fitted with: a dead zone
         fitted at zero width on a plain rig's lab log beat the refit baseline by 1 % (a likelihood
         ratio of 29) through that path and its joint fit of F and G alone."""
-        if not self.refit_g or (c is not None and (c.fitted is None or c.fitted.disturbance or c.theta is None)):
+        xs = self.effect_free(c)
+        if xs is None:
             return float("inf")
+        return rms(np.concatenate([(y - x)[m] for y, x, m in zip(self.yv, xs, self.mv)]))
+
+    def effect_free(self, c: Candidate | None) -> list[np.ndarray] | None:
+        """The validation predictions :meth:`effect_free_gap` measures (None where it is inf)."""
+        spec = self.effect_free_spec(c)
+        return None if spec is None else self._refit_predict(*spec, "val")
+
+    def effect_free_spec(self, c: Candidate | None):
+        """``(eff, theta)`` of :meth:`effect_free`'s model, for :meth:`predict_on`: the baseline's
+        G or ``c``'s, through an input effect's path (a clip out of reach) where ``c`` acts at the
+        input; None where there is none."""
+        if not self.refit_g or (c is not None and (c.fitted is None or c.fitted.disturbance or c.theta is None)):
+            return None
         g = self.g_p if c is None else self._split(c.fitted, c.theta)[1]
         if c is None or c.fitted.block == "input":
-            same = effect_models.InputSaturation()
-            xs = self._refit_predict(same, np.r_[-np.inf, np.inf, g], "val")
-        else:
-            xs = self._refit_predict(None, g, "val")
-        return rms(np.concatenate([(y - x)[m] for y, x, m in zip(self.yv, xs, self.mv)]))
+            return effect_models.InputSaturation(), np.r_[-np.inf, np.inf, g]
+        return None, g
 
     def predict_on(self, eff, theta, inputs) -> list[np.ndarray]:
         """The candidate fitted as ``eff`` at ``theta`` (its own parameters, then the model's)

@@ -322,8 +322,9 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
         why = left
         echo(why)
         verdict = "unexplained"
-    if not identified and isinstance(verdict, Candidate):
-        confirmation = confirm.check(verdict, fitter, val, floor.sigma, floor.kappa, rerun, echo)
+    if isinstance(verdict, Candidate) and confirm.applies(verdict, identified):
+        without, spec = confirm.without_effect(fitter, cands) if identified else (None, (None, None))
+        confirmation = confirm.check(verdict, fitter, val, floor.sigma, floor.kappa, rerun, echo, without, spec)
         if confirmation is not None and confirmation.contradicted:
             why = confirmation.why
             echo(why)
@@ -484,6 +485,8 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
             gap_ref = alternative.gap_ref
             test = gap.gap_test(gap_ref, n_val, floor, min_ratio=ID_MIN_RATIO)
         other = rank.fit_all(alternative, available, echo=echo)
+        for c in other:     # fitted on another baseline than ``fitter``'s: not confirmed with it
+            c.stripped = True
         free = min([free] + [alternative.effect_free_gap(c) for c in [None, *other]])
         cands = alternative_baseline(cands, other, min(gap_ref, free), floor.sigma, fitter.n_eff)
     if free < gap_ref:

@@ -29,6 +29,7 @@ class Candidate:
     at_bound: bool = False         # pressed against a bound that defines the effect
     theta: np.ndarray | None = field(default=None, repr=False)   # the fit's parameters (effect's, then F's and G's)
     fitted: object = field(default=None, repr=False)   # the Effect theta belongs to (a family at its chosen degree)
+    stripped: bool = False     # fitted on the baseline with the identified G's outside modes taken out
 
     def to_dict(self) -> dict:
         d = {"effect": self.effect, "params": self.params, "gap_after": self.gap_after,
