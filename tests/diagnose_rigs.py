@@ -33,6 +33,16 @@ PAPER = {"kind": "hammerstein_wiener",
          "noise": {"std": 0.01}}
 
 
+def paper_config(driver: str) -> dict:
+    """A config of the paper-plant rig ``driver`` with the paper's staircases and sines."""
+    return {"name": driver.replace("_", "-"), "seed": 11, "sampling": {"dt": 0.05},
+            "plant": {"kind": "external", "callable": f"diagnose_rigs:{driver}"},
+            "protocols": {"staircase": {"levels_up": [round(float(x), 4) for x in np.linspace(-1.4, 1.2, 10)],
+                                        "levels_down": [round(float(x), 4) for x in np.linspace(1.2, -1.4, 11)[1:]],
+                                        "hold": 30.0},
+                          "sine": {"amplitude": 1.0, "frequencies": [0.02, 0.05, 0.1, 0.2], "periods": 3}}}
+
+
 class _Rig:
     def __init__(self, seed: int):
         self.gear = 0.0

@@ -92,3 +92,14 @@ def test_an_open_case_is_run_again_and_settled_by_the_reruns_alone():
         assert confirm.Z_LOOK <= c.z < confirm.Z_WORSE, c
         assert calls and calls[0][0] == 1 and c.times == c.runs == calls[0][1] <= confirm.MAX_TIMES
         assert c.contradicted is expect, c
+
+
+def test_the_loop_test_refuses_only_a_remainder_above_the_floor():
+    """A remainder that still follows the output's past refuses the verdict where it leaves more
+    than the noise floor; within the floor (a judged rig's sine-shaped bend at 0.99x, p = 1.8e-14)
+    there is nothing left for the plant's dynamics to differ by."""
+    loop = [{"kind": "loop", "evidence": "", "p_value": 1e-14}]
+    assert "past outputs" in confirm.dynamics_left(loop, "curved_borders", 1.04, 1.0)
+    assert confirm.dynamics_left(loop, "curved_borders", 0.99, 1.0) == ""
+    assert confirm.dynamics_left([{"kind": "loop", "evidence": "", "p_value": 1e-9}], "curved_borders", 1.2, 1.0) == ""
+    assert confirm.dynamics_left([{"kind": "none", "evidence": "", "p_value": 0.5}], "curved_borders", 1.2, 1.0) == ""

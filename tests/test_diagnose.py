@@ -510,15 +510,9 @@ def test_identified_model_error_is_not_an_alarm():
 def _diagnose_paper_rig(tmp_path, driver: str, effects=None) -> dict:
     """Diagnose the paper-plant rig ``driver`` with the paper's plant as ``--model`` (the paper's
     staircases and sines as the config's protocols)."""
-    d = {"name": driver.replace("_", "-"), "seed": 11, "sampling": {"dt": 0.05},
-         "plant": {"kind": "external", "callable": f"diagnose_rigs:{driver}"},
-         "protocols": {"staircase": {"levels_up": [round(float(x), 4) for x in np.linspace(-1.4, 1.2, 10)],
-                                     "levels_down": [round(float(x), 4) for x in np.linspace(1.2, -1.4, 11)[1:]],
-                                     "hold": 30.0},
-                       "sine": {"amplitude": 1.0, "frequencies": [0.02, 0.05, 0.1, 0.2], "periods": 3}}}
     tmp_path.mkdir(parents=True, exist_ok=True)
     (tmp_path / "paper.yaml").write_text(yaml.safe_dump({"plant": R.PAPER}))
-    (tmp_path / "cfg.yaml").write_text(yaml.safe_dump(d))
+    (tmp_path / "cfg.yaml").write_text(yaml.safe_dump(R.paper_config(driver)))
     return diagnose(config.load(tmp_path / "cfg.yaml"), tmp_path / "out", model=tmp_path / "paper.yaml",
                     echo=lambda *a: None, effects=effects)
 

@@ -243,14 +243,8 @@ def _slow_actuator_named(s, note: str):
 
 def _paper_identified(tmp_path, driver: str) -> dict:
     """The paper-plant rig ``driver`` identified and diagnosed with the paper's protocols."""
-    d = {"name": driver.replace("_", "-"), "seed": 11, "sampling": {"dt": 0.05},
-         "plant": {"kind": "external", "callable": f"diagnose_rigs:{driver}"},
-         "protocols": {"staircase": {"levels_up": [round(float(x), 4) for x in np.linspace(-1.4, 1.2, 10)],
-                                     "levels_down": [round(float(x), 4) for x in np.linspace(1.2, -1.4, 11)[1:]],
-                                     "hold": 30.0},
-                       "sine": {"amplitude": 1.0, "frequencies": [0.02, 0.05, 0.1, 0.2], "periods": 3}}}
     p = tmp_path / "cfg.yaml"
-    p.write_text(yaml.safe_dump(d))
+    p.write_text(yaml.safe_dump(R.paper_config(driver)))
     return diagnose(config.load(p), tmp_path / "out", model=None, echo=lambda *a: None)
 
 

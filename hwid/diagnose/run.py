@@ -317,7 +317,8 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
     confirmation = None
     remainder = (val.remainder_of(verdict.predictions, sim_model.input) if not identified and isinstance(verdict, Candidate)
                  else None)
-    left = confirm.dynamics_left(remainder, verdict.effect) if remainder is not None else ""
+    left = (confirm.dynamics_left(remainder, verdict.effect, verdict.gap_after, floor.sigma) if remainder is not None
+            else "")
     if left:
         why = left
         echo(why)
