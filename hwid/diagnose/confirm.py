@@ -42,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hwid.diagnose.gap import rms
 from hwid.diagnose.verdict import paired_stats, paired_sums
 
 #: smallest worsening that counts, in units of the noise power per scored sample
@@ -185,7 +186,7 @@ def without_effect(fitter, cands):
         if spec is None:
             continue
         xs = fitter.effect_free(c)
-        g = float(np.sqrt(np.mean(np.concatenate([(y - x)[m] for y, x, m in zip(fitter.yv, xs, fitter.mv)]) ** 2)))
+        g = rms(np.concatenate([(y - x)[m] for y, x, m in zip(fitter.yv, xs, fitter.mv)]))
         if best is None or g < best[0]:
             best = (g, xs, spec)
     return (best[1], best[2]) if best is not None else (None, (None, None))
