@@ -42,7 +42,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hwid.diagnose.gap import rms
 from hwid.diagnose.verdict import paired_stats, paired_sums
 
 #: smallest worsening that counts, in units of the noise power per scored sample
@@ -124,9 +123,7 @@ def applies(verdict, identified: bool) -> bool:
     zone, bent borders) only. Such an effect, where it is the cause, leaves the refit F, G and h the
     plant's, so no experiment gets worse; a dynamic one takes part of G's dynamics over from the
     refit, and its right names can make a sine worse (module docstring)."""
-    fitted = getattr(verdict, "fitted", None)
-    return fitted is not None and (not identified or (bool(getattr(fitted, "static_input", False))
-                                                      and not verdict.stripped))
+    return verdict.fitted is not None and (not identified or (verdict.fitted.static_input and not verdict.stripped))
 
 
 def check(verdict, fitter, val, sigma: float, kappa: float, rerun=None, echo=print,
@@ -138,8 +135,11 @@ def check(verdict, fitter, val, sigma: float, kappa: float, rerun=None, echo=pri
     :data:`MAX_RUNS` otherwise) and returns ``[(u, y, mask), ...]``. ``None`` where there is nothing to check (a drift predicts no new run;
     no experiment is made worse by a material amount). ``without``: the model without the effect
     on the validation experiments (default the given model's output; for an identified model, the
-    best refit without an effect, :func:`without_effect`), and ``without_spec`` the ``(effect,
-    theta)`` that ``fitter.predict_on`` simulates it from on a rerun."""
+    best refit without an effect, :meth:`hwid.diagnose.rank.EffectFitter.best_effect_free`: a
+    bend's joint fit without the bend predicted a judged rig's validation part 11 % better than the
+    refit, and a right bend measured against the refit had made a sine worse by more than the bare
+    refit missed it), and ``without_spec`` the ``(effect, theta)`` that ``fitter.predict_on``
+    simulates it from on a rerun."""
     if verdict.effect == "drift" or not verdict.predictions:
         return None
     ws = worsening(val.y_val, verdict.predictions, val.sim_val.x if without is None else without, val.m_val,
@@ -171,25 +171,6 @@ def check(verdict, fitter, val, sigma: float, kappa: float, rerun=None, echo=pri
          f"({seconds:.0f} rig-seconds)")
     return dataclasses.replace(found, runs=len(runs), times=times, z_rerun=float(z_r), excess_rerun=float(d_r),
                                rig_seconds=seconds, contradicted=bool(z_r >= Z_RERUN and against(d_r, before_r)))
-
-
-def without_effect(fitter, cands):
-    """For an identified model, the best model without an effect on the validation experiments and
-    its ``(effect, theta)`` (:meth:`hwid.diagnose.rank.EffectFitter.effect_free_spec`): the refit
-    baseline, or a candidate's joint fit with its effect left out where that predicts the validation
-    part better (the model every effect was measured against; a bend's joint fit on a judged rig
-    predicted it 11 % better than the refit, and a right bend measured against the refit made a
-    sine worse by more than the bare refit had missed it)."""
-    best = None
-    for c in [None, *(c for c in cands if not c.stripped)]:
-        spec = fitter.effect_free_spec(c)
-        if spec is None:
-            continue
-        xs = fitter.effect_free(c)
-        g = rms(np.concatenate([(y - x)[m] for y, x, m in zip(fitter.yv, xs, fitter.mv)]))
-        if best is None or g < best[0]:
-            best = (g, xs, spec)
-    return (best[1], best[2]) if best is not None else (None, (None, None))
 
 
 def dynamics_left(structure: list[dict], effect: str, gap_after: float = float("inf"),

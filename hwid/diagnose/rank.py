@@ -599,20 +599,28 @@ class EffectFitter(HRefit):
         An effect is credited only with what it adds to the model it was fitted with: a dead zone
         fitted at zero width on a plain rig's lab log beat the refit baseline by 1 % (a likelihood
         ratio of 29) through that path and its joint fit of F and G alone."""
-        xs = self.effect_free(c)
-        if xs is None:
-            return float("inf")
-        return rms(np.concatenate([(y - x)[m] for y, x, m in zip(self.yv, xs, self.mv)]))
+        return self.best_effect_free([c], baseline=False)[0]
 
-    def effect_free(self, c: Candidate | None) -> list[np.ndarray] | None:
-        """The validation predictions :meth:`effect_free_gap` measures (None where it is inf)."""
-        spec = self.effect_free_spec(c)
-        return None if spec is None else self._refit_predict(*spec, "val")
+    def best_effect_free(self, cands, baseline: bool = True) -> tuple[float, list | None, tuple]:
+        """The best model without an effect on the validation experiments among the refit baseline
+        (with ``baseline``) and ``cands``' own models without their effects
+        (:meth:`effect_free_gap`): ``(gap, predictions, (eff, theta))``, the last for
+        :meth:`predict_on`; ``(inf, None, (None, None))`` where there is none."""
+        best = (float("inf"), None, (None, None))
+        for c in ([None] if baseline else []) + list(cands):
+            spec = self.effect_free_spec(c)
+            if spec is None:
+                continue
+            xs = self._refit_predict(*spec, "val")
+            g = rms(np.concatenate([(y - x)[m] for y, x, m in zip(self.yv, xs, self.mv)]))
+            if g < best[0]:
+                best = (g, xs, spec)
+        return best
 
     def effect_free_spec(self, c: Candidate | None):
-        """``(eff, theta)`` of :meth:`effect_free`'s model, for :meth:`predict_on`: the baseline's
-        G or ``c``'s, through an input effect's path (a clip out of reach) where ``c`` acts at the
-        input; None where there is none."""
+        """``(eff, theta)`` of :meth:`effect_free_gap`'s model: the baseline's G or ``c``'s,
+        through an input effect's path (a clip out of reach) where ``c`` acts at the input (the
+        baseline's, for ``None``); None where there is none."""
         if not self.refit_g or (c is not None and (c.fitted is None or c.fitted.disturbance or c.theta is None)):
             return None
         g = self.g_p if c is None else self._split(c.fitted, c.theta)[1]

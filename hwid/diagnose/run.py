@@ -274,7 +274,8 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
     min_ratio = ID_MIN_RATIO if identified else 1.1
     test = gap.gap_test(gap_ref, n_val, floor, min_ratio=min_ratio)
     _echo_baseline(fitter, gap_before, gap_ref, floor, test, echo)
-    cands, gap_ref, test = fit_effects(fitter, sim_model, val, floor, gap_ref, test, n_val, identified, effects, echo)
+    cands, gap_ref, test, without = fit_effects(fitter, sim_model, val, floor, gap_ref, test, n_val, identified,
+                                                effects, echo)
     drift_ok = bool(floor.slow_z > 10 and additive["additive"])
     repeats = drift_ok and wander is not None and repeats_under_best(val, cands, wander, additive, echo)
     drift_ok = drift_ok and not repeats
@@ -324,8 +325,7 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
         echo(why)
         verdict = "unexplained"
     if isinstance(verdict, Candidate) and confirm.applies(verdict, identified):
-        without, spec = confirm.without_effect(fitter, cands) if identified else (None, (None, None))
-        confirmation = confirm.check(verdict, fitter, val, floor.sigma, floor.kappa, rerun, echo, without, spec)
+        confirmation = confirm.check(verdict, fitter, val, floor.sigma, floor.kappa, rerun, echo, *without)
         if confirmation is not None and confirmation.contradicted:
             why = confirmation.why
             echo(why)
@@ -465,7 +465,9 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
     against the better baseline alone. For an identified model, each effect is measured against the
     best model without an effect found: the refit baseline, that baseline through an input effect's
     path, or an effect's own joint fit with its effect left out
-    (:meth:`hwid.diagnose.rank.EffectFitter.effect_free_gap`). Returns ``(candidates, gap_ref, test)``."""
+    (:meth:`hwid.diagnose.rank.EffectFitter.best_effect_free`). Returns ``(candidates, gap_ref, test,
+    without)``, ``without`` the best model without an effect among ``fitter``'s own, ``(predictions,
+    (eff, theta))``, for the confirmation (:func:`hwid.diagnose.confirm.check`)."""
     available = catalogue(val.scale)
     if effects is not None:
         unknown = [e for e in effects if e not in available]
@@ -473,7 +475,7 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
             raise HwidError(f"unknown effect(s) {', '.join(unknown)}; the catalogue is {', '.join(CATALOGUE)}")
         available = {k: v for k, v in available.items() if k in effects}
     cands = rank.fit_all(fitter, available, echo=echo)
-    free = min([fitter.effect_free_gap(c) for c in [None, *cands]])
+    free, *without = fitter.best_effect_free(cands)
     if identified and has_outside_modes(sim_model.linear, fitter.band):
         alternative = rank.EffectFitter(val.sim_fit, fitter.yf, fitter.mf, val.sim_val, val.y_val, val.m_val,
                                         fitter.names_val, val.scale, floor.sigma, floor.kappa, refit_h=True,
@@ -488,7 +490,7 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
         other = rank.fit_all(alternative, available, echo=echo)
         for c in other:     # fitted on another baseline than ``fitter``'s: not confirmed with it
             c.stripped = True
-        free = min([free] + [alternative.effect_free_gap(c) for c in [None, *other]])
+        free = min(free, alternative.best_effect_free(other)[0])
         cands = alternative_baseline(cands, other, min(gap_ref, free), floor.sigma, fitter.n_eff)
     if free < gap_ref:
         # the best model without an effect is one an effect's joint fit found: every effect is
@@ -498,7 +500,7 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
         gap_ref = free
         test = gap.gap_test(gap_ref, n_val, floor, min_ratio=ID_MIN_RATIO)
         cands = alternative_baseline(cands, [], gap_ref, floor.sigma, fitter.n_eff)
-    return cands, gap_ref, test
+    return cands, gap_ref, test, without
 
 
 def second_test(cands, gap_ref, floor, drift_ok: bool, n_eff: float, refloor_first: bool = True):
