@@ -21,7 +21,7 @@ BASE = {"kind": "hammerstein_wiener",
 NOISE = 0.01
 TRUTH = {"sensor_lag": {"tau_s": 1.5}, "rate_limit": {"rate": 0.4}, "rate_limit_slow": {"rate": 2.0 / 15.0}, "input_deadzone": {"delta": 0.2},
          "sensor_saturation": {"y_lo": -0.55, "y_hi": 0.55}, "resonance": {"omega_n": 4.0, "zeta": 0.05},
-         "rate_limit_inverse": {"rate": 5.6}, "input_saturation_paper": {"u_lo": -1.23, "u_hi": 0.73},
+         "rate_limit_inverse": {"rate": 5.6}, "rate_limit_inverse_moderate": {"rate": 1.5}, "input_saturation_paper": {"u_lo": -1.23, "u_hi": 0.73},
          "bent_borders": {"up": 0.06, "down": -0.04}, "sensor_saturation_paper": {"y_lo": -1.3, "y_hi": 1.3},
          "input_deadzone_paper": {"delta": 0.21},
          "bowed_apart_inverse": {"bow": 0.1}}
@@ -289,13 +289,13 @@ def bowed_apart_inverse(u, dt):
     return r.inverse(u, dt, bow) + r.NOISE * r.rng.standard_normal(u.size)
 
 
-def rate_limit_inverse(u, dt):
+def rate_limit_inverse(u, dt, name: str = "rate_limit_inverse"):
     """A fast actuator (5.6 units/s, carried over) before a Backlash-Inverse gear."""
-    if "rate_limit_inverse" not in _RIGS:
-        _RIGS["rate_limit_inverse"] = _InverseRig(zlib.crc32(b"rate_limit_inverse"))
-    r = _RIGS["rate_limit_inverse"]
+    if name not in _RIGS:
+        _RIGS[name] = _InverseRig(zlib.crc32(name.encode()))
+    r = _RIGS[name]
     u = np.asarray(u, float)
-    step = TRUTH["rate_limit_inverse"]["rate"] * dt
+    step = TRUTH[name]["rate"] * dt
     ua = np.empty_like(u)
     p = u[0] if r.actuator is None else r.actuator
     for i, ui in enumerate(u):
@@ -303,6 +303,12 @@ def rate_limit_inverse(u, dt):
         ua[i] = p
     r.actuator = p
     return r.inverse(ua, dt) + r.NOISE * r.rng.standard_normal(u.size)
+
+
+def rate_limit_inverse_moderate(u, dt):
+    """The same at 1.5 units/s: the lead-ins' holds still bring it where each experiment starts,
+    but not a jump between two experiments without one (the multisines)."""
+    return rate_limit_inverse(u, dt, "rate_limit_inverse_moderate")
 
 
 class _PaperRig(_Rig):

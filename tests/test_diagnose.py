@@ -175,6 +175,34 @@ def test_branches_bowed_apart_are_named_with_the_plays_width_free(tmp_path):
     assert s["gap_after"] < 1.1 * s["noise_floor"]
 
 
+def test_actuator_carried_at_a_moderate_rate(tmp_path):
+    """A Backlash-Inverse behind an actuator slewing at 1.5 units/s, carried over, its simulator as
+    ``--model`` (the judged seeds' lab protocols): the lead-ins' holds bring the actuator where each
+    fit experiment starts, and the validation multisine starts away from where the fit multisine
+    before it ended, which only a carried actuator predicts. Named, its rate within 2 %, carried
+    over, and every validation experiment at the floor (a judged rig of this kind fitted at
+    ``carried`` 0.51 left that multisine 6.5x the floor: ``tests/test_effect_readings.py``)."""
+    d = {"name": "rate_moderate", "seed": 4, "sampling": {"dt": 0.02},
+         "plant": {"kind": "external", "callable": "diagnose_rigs:rate_limit_inverse_moderate"},
+         "protocols": {"staircase": {"levels_up": [-1.2, -0.9333, -0.6667, -0.4, -0.1333, 0.1333, 0.4, 0.6667,
+                                                   0.9333, 1.2],
+                                     "levels_down": [1.2, 0.96, 0.72, 0.48, 0.24, 0.0, -0.24, -0.48, -0.72, -0.96,
+                                                     -1.2], "hold": 5.0},
+                       "sine": {"amplitude": 1.0, "frequencies": [0.3, 0.6, 1.2, 2.5], "periods": 4,
+                                "lead_in_periods": 1}}}
+    (tmp_path / "model.yaml").write_text(yaml.safe_dump({"plant": R.INVERSE}))
+    (tmp_path / "cfg.yaml").write_text(yaml.safe_dump(d))
+    s = diagnose(config.load(tmp_path / "cfg.yaml"), tmp_path / "out", model=tmp_path / "model.yaml",
+                 echo=lambda *a: None)
+    top = s["candidates"][0]
+    assert s["verdict"]["effect"] == "rate_limit" == top["effect"]
+    assert abs(top["params"]["rate"] / R.TRUTH["rate_limit_inverse_moderate"]["rate"] - 1) < 0.02
+    assert top["params"]["carried"] > 0.99
+    assert s["gap_after"] < 1.1 * s["noise_floor"]
+    worst = max(e["after_over_noise"] for e in s["where"]["experiments"])
+    assert worst < 1.3
+
+
 def test_outside_effect_is_unexplained(tmp_path_factory, base_model):
     s, _ = _run(tmp_path_factory, "output_friction", base_model)
     assert s["verdict"]["effect"] == "unexplained"

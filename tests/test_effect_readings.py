@@ -13,12 +13,12 @@ from hwid.diagnose.effects import RateLimit
 from hwid.diagnose.rank import SAME_FIT, EffectFitter
 
 
-def test_a_rate_limits_other_reading_flips_the_actuators_memory():
+def test_a_rate_limits_other_readings_are_the_actuators_two_memories():
     eff = RateLimit()
     (other,) = eff.other_readings([1.48, 1.0])
     assert other.tolist() == [1.48, 0.0]
-    (other,) = eff.other_readings([0.3, 0.2])
-    assert other.tolist() == [0.3, 1.0]
+    # a fit the experiments could not tell left between the two: both are read
+    assert [o.tolist() for o in eff.other_readings([0.3, 0.51])] == [[0.3, 0.0], [0.3, 1.0]]
 
 
 class _Fitter:
@@ -49,3 +49,12 @@ def test_the_reading_kept(other_fit, other_gap, kept):
     f = _Fitter({1.0: (0.0, 0.037), 0.0: (other_fit, other_gap)})
     best = f._reading(RateLimit(), f._cand([1.48, 1.0]), 1000.0)
     assert best.theta[1] == kept
+
+
+def test_a_reading_left_between_the_two_memories_is_read_at_both():
+    """A judged rig carrying its actuator, fitted at ``carried`` 0.51 (the fit experiments alike at
+    any value), left its validation multisine 6.5x the floor (0.033 against 0.0051); carried over
+    (1) it predicts it at the floor, reset (0) at 13x. The carried reading is kept."""
+    f = _Fitter({0.51: (0.0, 0.0100), 1.0: (0.0, 0.0051), 0.0: (0.0, 0.0190)})
+    best = f._reading(RateLimit(), f._cand([1.508, 0.51]), 1000.0)
+    assert best.theta.tolist() == [1.508, 1.0]
