@@ -403,6 +403,15 @@ def test_the_second_test_names_an_effect_held_near_the_floor_that_explains_a_qua
                      explained_fraction(plain_ref, 0.0099884, 0.0099813), -39.25, 5.0)
     _, by = second_test([bend], plain_ref, dataclasses.replace(nf, sigma=0.0099813), False, 28814.0)
     assert by["likelihood_ratio"] == pytest.approx(12.1, abs=0.1) and not by["significant"]
+    # with a given model, within 10 % of the noise: a judged plain rig's best (a resonance, all of a
+    # gap at the floor, score 7.4) is held to GIVEN_SMALL_SCORE; a judged rate limit's (637.6) is not
+    from hwid.diagnose.run import GIVEN_SMALL_SCORE
+    for score, named in ((7.4, False), (637.6, True)):
+        c = Candidate("resonance", "linear", {}, 0.0100, 0.0100, 1.0, score, 2.0)
+        _, by = second_test([c], 0.0101, nf, False, 11332.0, refloor_first=False, min_score=GIVEN_SMALL_SCORE)
+        assert by["significant"] is named
+        _, by = second_test([c], 0.0101, nf, False, 11332.0, refloor_first=False)
+        assert by["significant"]       # without the bar the plain rig's resonance passes the ratio
 
 
 def test_drift_is_additive_against_a_wandering_gain():

@@ -114,6 +114,23 @@ def test_a_small_gap_short_of_five_sigma_is_named_by_the_second_test(tmp_path):
     assert s["gap_after"] < 1.05 * s["noise_floor"]
 
 
+def test_a_gap_within_ten_per_cent_is_named_by_an_effect_that_earns_its_score(tmp_path):
+    """An actuator slewing at 25 units/s, the rig's own model as ``--model``: the log's validation
+    part is within 10 % of the noise (power ratio 1.05), where the first test does not look. Its
+    candidate explains most of that and earns a BIC score far above ``GIVEN_SMALL_SCORE`` (the best
+    candidates of 157 judged plain rigs scored 16.9 at most), and the rate limit is named. The
+    log's fit part places the rate only loosely (the fit's residual is alike from 20 to 40
+    units/s: few of its samples see a 25 units/s actuator lag), so the rate is not checked."""
+    from hwid.diagnose.run import GIVEN_SMALL_SCORE
+    cfg = config.load(logs.write_lab(tmp_path, "mild", rate=25.0, seed=6))
+    s = diagnose(cfg, tmp_path / "out", model=logs.write_model(tmp_path), echo=_quiet)
+    t = s["test"]
+    assert t["power_ratio"] < 1.1 ** 2 and not t["z"] > 5
+    assert t["by_effect"]["effect"] == "rate_limit" and t["by_effect"]["score"] > 4 * GIVEN_SMALL_SCORE
+    assert s["verdict"]["effect"] == "rate_limit" and s["verdict"]["explained_fraction"] > 0.5
+    assert s["gap_after"] < 1.01 * s["noise_floor"]
+
+
 def test_plain_log_with_coloured_noise_is_no_false_alarm(tmp_path):
     """AR(1) noise (lag-1 coefficient 0.5, as on the blind check's asymmetric base), identified
     from the log: the floor carries the noise's correlation, and no effect is credited with what
