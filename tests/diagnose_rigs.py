@@ -22,7 +22,6 @@ NOISE = 0.01
 TRUTH = {"sensor_lag": {"tau_s": 1.5}, "rate_limit": {"rate": 0.4}, "rate_limit_slow": {"rate": 2.0 / 15.0}, "input_deadzone": {"delta": 0.2},
          "sensor_saturation": {"y_lo": -0.55, "y_hi": 0.55}, "resonance": {"omega_n": 4.0, "zeta": 0.05},
          "rate_limit_inverse": {"rate": 5.6}, "rate_limit_inverse_moderate": {"rate": 1.5}, "input_saturation_paper": {"u_lo": -1.23, "u_hi": 0.73},
-         "input_saturation_inverse": {"u_lo": -0.87, "u_hi": 0.79},
          "bent_borders": {"up": 0.06, "down": -0.04}, "sensor_saturation_paper": {"y_lo": -1.3, "y_hi": 1.3},
          "input_deadzone_paper": {"delta": 0.21},
          "bowed_apart_inverse": {"bow": 0.1}}
@@ -342,17 +341,6 @@ def input_saturation_paper(u, dt):
     u = np.clip(np.asarray(u, float), t["u_lo"], t["u_hi"])
     return r.paper(u, dt) + r.noise(u.size)
 
-
-
-def input_saturation_inverse(u, dt):
-    """A Backlash-Inverse geared plant behind an actuator that clips u to [-0.87, 0.79], inside
-    the staircases' range: the levels beyond and the tops of the sines are flat."""
-    if "input_saturation_inverse" not in _RIGS:
-        _RIGS["input_saturation_inverse"] = _InverseRig(zlib.crc32(b"input_saturation_inverse"))
-    t = TRUTH["input_saturation_inverse"]
-    r = _RIGS["input_saturation_inverse"]
-    return r.inverse(np.clip(np.asarray(u, float), t["u_lo"], t["u_hi"]), dt) + r.NOISE * r.rng.standard_normal(
-        np.size(u))
 
 
 def input_deadzone_paper(u, dt):

@@ -293,7 +293,7 @@ def _whole_model(cfg, fitter, pieces, out: Path, echo, t0: float) -> tuple:
                                       "the records (2 pi / their longest)")
     return model, {"source": "identified", "fit": "whole", "records": list(pieces), "starts": dict(res.initial_states),
                    "u_range": [float(u.min()), float(u.max())], "notes": list(res.warnings) + notes,
-                   "input_rate_taken_out": rate or 0.0, "fit_rms": float(res.rms),
+                   "input_rate_taken_out": rate or 0.0,
                    "input_clip_taken_out": [float(c) for c in clip] if clip else None}
 
 

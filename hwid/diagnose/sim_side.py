@@ -61,15 +61,6 @@ def model_from_run(path: Path, echo=print) -> tuple[HWModel, dict]:
 RAIL_SHRINK = 0.7
 RAIL_TRIES = 3
 
-#: the two stages' model is also fitted whole where it misses its own records by more than this
-#: many times the noise (:func:`_whole_where_stages_miss`)
-STAGES_MISS = 10.0
-
-#: the most samples the whole fit of :func:`_whole_where_stages_miss` reads (:func:`_thinning`)
-WHOLE_SAMPLES = 8000
-#: records of at most this many samples are read whole (:func:`_thinning`)
-WHOLE_READ_ALL = 20000
-
 
 def identified_model(cfg, plant, out_dir=None, echo=print) -> tuple[HWModel, dict]:
     """Identify the model from ``plant`` with the config's staircases and sines (both stages); the
@@ -119,86 +110,9 @@ def identified_model(cfg, plant, out_dir=None, echo=print) -> tuple[HWModel, dic
     model = model_from_stages(nonlinear, linear, stage_notes)
     for note in stage_notes:
         echo(note)
-    origin = {"source": "identified", "w_range": w_range, "notes": notes + stage_notes,
-              "u_range": [float(min(levels)), float(max(levels))], "records": records,
-              "input_deadzone_taken_out": ahead.delta if ahead is not None else 0.0}
-    if ahead is None and out_dir is not None:
-        return _whole_where_stages_miss(cfg, model, origin, linear, out_dir, echo)
-    return model, origin
-
-
-def _whole_where_stages_miss(cfg, model, origin, linear, out_dir, echo) -> tuple[HWModel, dict]:
-    """The two stages' model, or the model fitted whole to their records where the stages miss
-    those records by more than :data:`STAGES_MISS` times the noise (stage 2's harmonic fits'
-    smallest sigma) and the whole fit misses them by at most half as much and by no more than
-    that many times the noise itself (a friction's records fitted whole by a model 60x off, whose
-    diagnosis then named a dead zone 7,600x the floor).
-
-    Two stages read from levels and harmonics stand for the plant where the plant is the paper's
-    chain; an effect that bends the levels or the sines (a clip, a dead zone, a slow actuator whose
-    sines still show harmonics) bends them into a model that misses its own records, and whatever
-    the diagnosis's refit moves then starts far from the plant. On the judged seeds' live
-    identified diagnoses a third of the models that missed their records by more than 16x the
-    noise ended in a wrong verdict, against a tenth below. The whole fit sees every record's
-    samples and fits a slew rate, a clip and a delay where the criterion asks for them."""
-    from hwid.diagnose.logs import identify_from_logs, step_settling_time
-    from hwid.diagnose.run import identification_error
-    records, dt = origin["records"], cfg.sampling.dt
-    sigmas = [float(h["sigma"]) for h in linear.harmonics if np.isfinite(h.get("sigma", np.nan))]
-    if not sigmas:
-        return model, origin
-    sigma = float(np.min(sigmas))
-    staged = identification_error(model, records, dt, step_settling_time(model), sigma)
-    if staged["records"] and not staged["gap"] > STAGES_MISS * sigma:
-        return model, origin
-    missed = (f"{staged['gap'] / sigma:.3g}x the noise" if staged["records"] else
-              "more than can be measured (it settles slower than any of them lasts)")
-    echo(f"the two stages' model misses its own records by {missed}: the model is also fitted whole to them")
-    k = _thinning(cfg, model, records)
-    if k > 1:
-        echo(f"the whole fit reads every {k}th sample of them (each held from the middle of its interval)")
-    whole, w_origin = identify_from_logs(cfg, [_thinned(r, k) for r in records], Path(out_dir), echo)
-    w_origin["records"] = list(records)
-    # the whole fit's own residual, with the slew rate and the clip it fitted (which its model
-    # leaves to the effects)
-    if not w_origin["fit_rms"] <= STAGES_MISS * sigma or (staged["records"] and
-                                                         not w_origin["fit_rms"] <= 0.5 * staged["gap"]):
-        echo(f"the whole fit misses them by {w_origin['fit_rms'] / sigma:.3g}x: the two stages' model is kept")
-        return model, origin
-    note = (f"the two stages' model missed its own records by {missed}, the model fitted whole to them by "
-            f"{w_origin['fit_rms'] / sigma:.3g}x: the whole fit is used")
-    echo(note)
-    w = np.concatenate([whole.input.apply(r.u) for r in records])
-    return whole, {**w_origin, "w_range": [float(w.min()), float(w.max())],
-                   "u_range": origin["u_range"], "notes": origin["notes"] + [note] + list(w_origin.get("notes", []))}
-
-
-def _thinning(cfg, model, records) -> int:
-    """How many samples of the identification records the whole fit may hold as one: none where
-    they hold at most :data:`WHOLE_READ_ALL` samples, else at most :data:`WHOLE_SAMPLES` samples in
-    all, but no interval longer than a tenth of a radian of the fastest sine (the band the stages
-    were asked to read). The paper base's records, 2,900 rig-s, took the whole fit 135-342 s at
-    every sample, 24-47 s at every eighth. Held from the middle of its interval, the input neither
-    leads nor lags, but a jump moves by up to half an interval: a slow actuator's records fitted
-    whole at every second sample left its rate limit 8.4x the floor, against 1.02x at every
-    sample."""
-    n = sum(np.size(r.u) for r in records)
-    dt = cfg.sampling.dt
-    fastest = float(max(cfg.protocols.sine.frequencies))
-    if n <= WHOLE_READ_ALL:
-        return 1
-    return max(1, min(int(np.ceil(n / WHOLE_SAMPLES)), int(0.1 / (fastest * dt))))
-
-
-def _thinned(record, k: int):
-    """``record`` with every ``k``th output sample, each interval's input its middle sample: held
-    for the interval, that input neither leads nor lags the one the plant received."""
-    from hwid.plant import Record
-    if k <= 1:
-        return record
-    u, y = np.asarray(record.u, float), np.asarray(record.y, float)
-    mid = np.minimum(np.arange(0, u.size, k) + k // 2, u.size - 1)
-    return Record(record.name, record.dt * k, u[mid], y[::k], attrs=dict(record.attrs))
+    return model, {"source": "identified", "w_range": w_range, "notes": notes + stage_notes,
+                   "u_range": [float(min(levels)), float(max(levels))], "records": records,
+                   "input_deadzone_taken_out": ahead.delta if ahead is not None else 0.0}
 
 
 def _sines_off_the_rails(cfg, nonlinear, linear, records, plant, echo):
