@@ -153,6 +153,14 @@ def test_borders_bent_in_an_s_curve_named_with_the_degree_the_data_choose(tmp_pa
     assert s["gap_after"] < 1.05 * s["noise_floor"]
 
 
+def _inverse_rig_diagnosed(tmp_path, d: dict) -> dict:
+    """The diagnosis of config ``d`` with the Backlash-Inverse base (``R.INVERSE``) as ``--model``."""
+    (tmp_path / "model.yaml").write_text(yaml.safe_dump({"plant": R.INVERSE}))
+    (tmp_path / "cfg.yaml").write_text(yaml.safe_dump(d))
+    return diagnose(config.load(tmp_path / "cfg.yaml"), tmp_path / "out", model=tmp_path / "model.yaml",
+                    echo=lambda *a: None)
+
+
 def test_branches_bowed_apart_are_named_with_the_plays_width_free(tmp_path):
     """A Backlash-Inverse whose two branches bow away from each other (the jump between them 0.13
     larger on average), its straight-branched simulator as ``--model``: a bend that keeps the mean
@@ -164,10 +172,7 @@ def test_branches_bowed_apart_are_named_with_the_plays_width_free(tmp_path):
          "protocols": {"staircase": {"levels_up": [-1.5, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5],
                                      "levels_down": [1.5, 1.0, 0.5, 0.0, -0.5, -1.0, -1.5], "hold": 5.0},
                        "sine": {"amplitude": 1.0, "frequencies": [0.3, 1.0, 3.0], "periods": 2}}}
-    (tmp_path / "model.yaml").write_text(yaml.safe_dump({"plant": R.INVERSE}))
-    (tmp_path / "cfg.yaml").write_text(yaml.safe_dump(d))
-    s = diagnose(config.load(tmp_path / "cfg.yaml"), tmp_path / "out", model=tmp_path / "model.yaml",
-                 echo=lambda *a: None)
+    s = _inverse_rig_diagnosed(tmp_path, d)
     top = s["candidates"][0]
     assert s["verdict"]["effect"] == "curved_borders" == top["effect"]
     assert "play" in top["params"]
@@ -190,10 +195,7 @@ def test_actuator_carried_at_a_moderate_rate(tmp_path):
                                                      -1.2], "hold": 5.0},
                        "sine": {"amplitude": 1.0, "frequencies": [0.3, 0.6, 1.2, 2.5], "periods": 4,
                                 "lead_in_periods": 1}}}
-    (tmp_path / "model.yaml").write_text(yaml.safe_dump({"plant": R.INVERSE}))
-    (tmp_path / "cfg.yaml").write_text(yaml.safe_dump(d))
-    s = diagnose(config.load(tmp_path / "cfg.yaml"), tmp_path / "out", model=tmp_path / "model.yaml",
-                 echo=lambda *a: None)
+    s = _inverse_rig_diagnosed(tmp_path, d)
     top = s["candidates"][0]
     assert s["verdict"]["effect"] == "rate_limit" == top["effect"]
     assert abs(top["params"]["rate"] / R.TRUTH["rate_limit_inverse_moderate"]["rate"] - 1) < 0.02
