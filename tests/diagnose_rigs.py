@@ -34,7 +34,10 @@ PAPER = {"kind": "hammerstein_wiener",
 
 
 def paper_config(driver: str) -> dict:
-    """A config of the paper-plant rig ``driver`` with the paper's staircases and sines."""
+    """A config of the paper-plant rig ``driver`` with the paper's staircases and sines; the rig
+    starts afresh (its noise and state do not carry over from another test that ran it first in
+    the same process, which made a test's verdict depend on the order pytest's workers took)."""
+    _RIGS.pop(driver, None)
     return {"name": driver.replace("_", "-"), "seed": 11, "sampling": {"dt": 0.05},
             "plant": {"kind": "external", "callable": f"diagnose_rigs:{driver}"},
             "protocols": {"staircase": {"levels_up": [round(float(x), 4) for x in np.linspace(-1.4, 1.2, 10)],
