@@ -680,7 +680,7 @@ def test_an_input_effect_at_its_null_is_credited_with_nothing():
     record opens with a hold inside the play, the plant's gear against the lower border, the
     model's in the middle) and the refit baseline's does not. A dead zone of zero width is then no
     effect, yet beats the baseline; measured against the same model without it
-    (``EffectFitter.effect_free_gap``), it removes nothing."""
+    (``EffectFitter.best_effect_free``), it removes nothing."""
     from hwid.blocks.linear import LinearBlock
     from hwid.blocks.static import PolynomialH
     from hwid.diagnose.effects import InputDeadzone, Scale
@@ -708,8 +708,8 @@ def test_an_input_effect_at_its_null_is_credited_with_nothing():
                           sigma, 1.0, refit_h=True, refit_g=True, band=None)
     null = fitter._score(InputDeadzone(), np.r_[0.0, 0.0, fitter.g_p], 2)
     assert null.gap_after < 0.9 * fitter.gap_ref              # the path's advantage, not the effect's
-    assert abs(fitter.effect_free_gap(null) - null.gap_after) < 1e-9
-    assert abs(fitter.effect_free_gap(None) - null.gap_after) < 1e-9
+    assert abs(fitter.best_effect_free([null], baseline=False)[0] - null.gap_after) < 1e-9
+    assert abs(fitter.best_effect_free([])[0] - null.gap_after) < 1e-9
 
 
 def test_equal_numbers_of_poles_and_zeros_below_half_the_band_act_as_a_gain_and_go():

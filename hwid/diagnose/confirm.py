@@ -173,8 +173,7 @@ def check(verdict, fitter, val, sigma: float, kappa: float, rerun=None, echo=pri
                                rig_seconds=seconds, contradicted=bool(z_r >= Z_RERUN and against(d_r, before_r)))
 
 
-def dynamics_left(structure: list[dict], effect: str, gap_after: float = float("inf"),
-                  sigma: float = 0.0) -> str:
+def dynamics_left(structure: list[dict], effect: str, gap_after: float, sigma: float) -> str:
     """Why a verdict with a given model is ``unexplained`` where the tests on its own validation
     residual (``structure``, :func:`hwid.diagnose.residual_structure.residual_structure`) find that
     it still follows the output's history beyond the model (the ``loop`` test) at a p-value below

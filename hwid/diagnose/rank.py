@@ -588,24 +588,22 @@ class EffectFitter(HRefit):
         c.fitted = eff
         return c
 
-    def effect_free_gap(self, c: Candidate | None) -> float:
-        """The validation gap of ``c``'s own model without its effect: F and G as ``c``'s joint fit
-        left them (the baseline's for ``None``), h re-estimated on the fit data, and for an effect
-        of the input, the input run through the same path with the actuator left as it is (an
-        input effect's path re-estimates the gear's start where a record leaves it open,
-        :meth:`hwid.diagnose.modelsim.ModelSim.gear_start`, and the baseline's does not). Inf where
-        G was not re-estimated with the effect, or ``c`` is a disturbance.
+    def best_effect_free(self, cands, baseline: bool = True) -> tuple[float, list | None, tuple]:
+        """The best model without an effect on the validation experiments among the refit baseline
+        (with ``baseline``) and ``cands``' own models without their effects: ``(gap, predictions,
+        (eff, theta))``, the last for :meth:`predict_on`; ``(inf, None, (None, None))`` where there
+        is none.
+
+        A candidate's model without its effect: F and G as its joint fit left them (the baseline's
+        for the baseline), h re-estimated on the fit data, and for an effect of the input, the input
+        run through the same path with the actuator left as it is (an input effect's path
+        re-estimates the gear's start where a record leaves it open,
+        :meth:`hwid.diagnose.modelsim.ModelSim.gear_start`, and the baseline's does not). None where
+        G was not re-estimated with the effect, or the candidate is a disturbance.
 
         An effect is credited only with what it adds to the model it was fitted with: a dead zone
         fitted at zero width on a plain rig's lab log beat the refit baseline by 1 % (a likelihood
         ratio of 29) through that path and its joint fit of F and G alone."""
-        return self.best_effect_free([c], baseline=False)[0]
-
-    def best_effect_free(self, cands, baseline: bool = True) -> tuple[float, list | None, tuple]:
-        """The best model without an effect on the validation experiments among the refit baseline
-        (with ``baseline``) and ``cands``' own models without their effects
-        (:meth:`effect_free_gap`): ``(gap, predictions, (eff, theta))``, the last for
-        :meth:`predict_on`; ``(inf, None, (None, None))`` where there is none."""
         best = (float("inf"), None, (None, None))
         for c in ([None] if baseline else []) + list(cands):
             spec = self.effect_free_spec(c)
@@ -618,7 +616,7 @@ class EffectFitter(HRefit):
         return best
 
     def effect_free_spec(self, c: Candidate | None):
-        """``(eff, theta)`` of :meth:`effect_free_gap`'s model: the baseline's G or ``c``'s,
+        """``(eff, theta)`` of :meth:`best_effect_free`'s model of ``c``: the baseline's G or ``c``'s,
         through an input effect's path (a clip out of reach) where ``c`` acts at the input (the
         baseline's, for ``None``); None where there is none."""
         if not self.refit_g or (c is not None and (c.fitted is None or c.fitted.disturbance or c.theta is None)):
