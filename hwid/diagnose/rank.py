@@ -341,7 +341,7 @@ class EffectFitter(HRefit):
         excess phase by name). The refit G is then re-estimated without it, and the delay is a
         starting point of ``time_delay``, which must earn it back on the validation data. A
         delay the refit G's poles can stand in for leaves no gap, and no effect is named."""
-        if self._g_delay <= 0:
+        if self._g_delay <= 0.1 * self.sf.dt:     # a tenth of a sample is no delay
             return
         F, G = self.input_nl(self.g_p), self.linear(self.g_p)
         self._replace_g(F, G.num, G.den, 0.0)
