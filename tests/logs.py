@@ -47,7 +47,7 @@ def lab_parts(hold: float = 4.0, lo: float = -1.5, hi: float = 1.5) -> list[np.n
 def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int = 0, parts=None,
               one_record: bool = False, ar: float = 0.0, carry: bool = False, linear: dict | None = None,
               drift: tuple[float, float] | None = None, opening_rail: tuple[float, float] | None = None,
-              clip_between: tuple[float, float, float] | None = None):
+              clip_between: tuple[float, float, float] | None = None, input_nonlinearity: dict | None = None):
     """Write ``NAME.csv`` and its recorded config ``NAME.yaml``; return the config path. ``ar``:
     the noise's lag-1 coefficient (AR(1) noise of s.d. :data:`SIGMA`; 0 is white). ``carry``: the
     rate-limited actuator runs on through the pauses (each part starts where the last left it),
@@ -57,10 +57,12 @@ def write_lab(tmp_path, name: str = "lab", rate: float | None = None, seed: int 
     the first part's first ``s`` seconds read exactly ``y`` (a sensor at its rail while the rig came
     into its range as the log began). ``clip_between``: ``(tau1, tau2, level)``, G is the two lags
     ``1/(tau1 s + 1)`` then ``1/(tau2 s + 1)`` with a clip at +-``level`` between them (no
-    catalogue effect; :func:`two_lags` is G for the model)."""
+    catalogue effect; :func:`two_lags` is G for the model). ``input_nonlinearity``: F's ``type,
+    slope_up, slope_down, d_plus, d_minus`` in place of :data:`F`."""
     rng = np.random.default_rng(seed)
     g = G if linear is None else linear
-    m = HWModel(InputNonlinearity(F["type"], F["slope_up"], F["slope_down"], F["d_plus"], F["d_minus"]),
+    f = F if input_nonlinearity is None else input_nonlinearity
+    m = HWModel(InputNonlinearity(f["type"], f["slope_up"], f["slope_down"], f["d_plus"], f["d_minus"]),
                 LinearBlock(tuple(g["num"]), tuple(g["den"]), float(g.get("delay", 0.0))), PolynomialH(tuple(H)))
     parts = lab_parts() if parts is None else parts
     if one_record:

@@ -181,6 +181,25 @@ def test_a_slow_actuator_identified_from_the_log_alone(tmp_path):
     assert params["rate"] == pytest.approx(slow, rel=0.05)
 
 
+def test_a_slow_actuator_before_a_backlash_inverse_identified_from_the_log_alone(tmp_path):
+    """A rate limit of 0.2 units/s (15 s across the range), reset at each part, before a
+    Backlash-Inverse, and no model. From the border grid's best borders without the rate, every
+    structure's descent stopped in another valley (a clip in place of the rate, 12-16x the floor
+    left, `unexplained`); with the borders, rate and memory also chosen together on the grid
+    (:func:`hwid.identify.whole_rate.fit_rate_added`), the fit finds the rate and `rate_limit`
+    earns it back at the noise."""
+    slow = 0.2
+    inverse = {"type": "backlash_inverse", "slope_up": 1.0, "slope_down": 1.3, "d_plus": 0.25, "d_minus": -0.35}
+    cfg = config.load(logs.write_lab(tmp_path, "slow", rate=slow, seed=3, input_nonlinearity=inverse))
+    s = diagnose(cfg, tmp_path / "out", echo=_quiet)
+    assert s["verdict"]["effect"] == "rate_limit"
+    assert s["model"]["input_rate_taken_out"] == pytest.approx(slow, rel=0.05)
+    assert s["gap_after"] <= 1.15 * s["noise_floor"] < s["gap_before"] / 5
+    params = next(c for c in s["candidates"] if c["effect"] == "rate_limit")["params"]
+    assert params["rate"] == pytest.approx(slow, rel=0.03)
+    assert params["carried"] < 0.1
+
+
 def test_a_mode_the_whole_fit_puts_into_g_is_named_a_resonance(tmp_path):
     """G with a lightly damped pair (5 rad/s, zeta 0.1) that the whole fit from the log takes into
     its G: no sine band fixed G, so the pair is the resonance effect's to earn back, and it does,

@@ -143,7 +143,7 @@ def _added_dynamics(prob: _Problem, theta, starts, lag: float, freed: int, width
               (Structure(s.poles, s.pairs + 1, s.zeros), 3 + s.poles + 2 * s.pairs,
                [[np.log(1.4 / max(lag, dt)), np.log(0.7)], [np.log(2.0 / max(lag, dt)), np.log(0.1)]])]
     for structure, at, inserts in trials:
-        alt = _Problem(prob.records, prob.type, structure, prob.degree, False)
+        alt = replace(prob, structure=structure, with_delay=False)    # its slew rate and clip kept
         lo, hi = alt.bounds(width, span, dt)
         extra = structure.n_params - s.n_params - freed
         for t in starts:

@@ -16,6 +16,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from hwid.identify.whole_coarse import coarse_first
+from hwid.identify.whole_delay import pole_for_rhp_zero
 from hwid.identify.whole import STRUCTURES, WholeModelFit, _best_states, _descend, _extent, _Problem, _row
 
 #: the rates the fit starts from: this many, from crossing the input's range in two minutes to
@@ -32,20 +34,55 @@ def fit_rate_added(fitter: WholeModelFit) -> float | None:
     grid and G's default (:meth:`WholeModelFit._start`), at the best of ``RATE_POINTS`` rates,
     and every one is descended (on a third-order rig slewing at 0.22 units/s, the best four
     starts all stopped in other valleys: a Backlash-Inverse at 0.06 units/s, 4.8x the noise; the
-    fourteen, 5-8 s in all, found 0.236 at 1.45x). The rate is kept where the criterion
-    prefers the fit with it: ``fitter`` then holds that fit (``problem_``, ``theta_``,
+    fourteen, 5-8 s in all, found 0.236 at 1.45x), and from the two best borders, rates and
+    memories chosen together (as :func:`fit_rate_first` does): on judged lab logs, five slow
+    actuators (0.055-0.2 units/s; three before a Backlash-Inverse or behind asymmetric borders)
+    had ended every descent in another valley, the fit with a clip in the rate's place, and were
+    `unexplained`; from the joint starts the rate was found and named at 0.93-1.03x the floor, at
+    the same time or less for the diagnosis (the fit converges). The rate is kept where the
+    criterion prefers the fit with it: ``fitter`` then holds that fit (``problem_``, ``theta_``,
     ``result_``, whose table gains the rows marked ``+rate``) and the rate is returned; else None
     and ``fitter`` keeps its fit (its table gains the rows)."""
     base = fitter.problem_
-    probs, fits, rows = _rate_fits(fitter, base.records, base.degree, base.with_delay, base.structure.order)
+    probs, fits, rows = _rate_fits(fitter, base.records, base.degree, base.with_delay, base.structure.order,
+                                   joint_starts=2)
     i = int(np.argmin([r["aic"] for r in rows]))
     prob, x = probs[i], fits[i][0]
     table = list(fitter.result_.selection) + rows
-    if rows[i]["aic"] >= min(r["aic"] for r in fitter.result_.selection):
+    # a right-half-plane zero standing in for a pole the structure lacks (order no higher than the
+    # fit without the rate), which the diagnosis would take out as a delay
+    _, dt, width = _extent(prob.records)
+    pole = pole_for_rhp_zero(prob, x, width, _extent(prob.records)[0], dt, fitter.max_nfev)
+    if pole is not None:
+        prob, x, rss = pole
+        table.append(_row(prob, rss))
+        rows = rows + [table[-1]]
+        i = len(rows) - 1
+    if rows[i]["aic"] >= min(r["aic"] for r in fitter.result_.selection) or not _follows(prob, x):
         fitter.result_ = replace(fitter.result_, selection=tuple(table))
         return None
     _keep(fitter, prob, x, table)
     return prob.rate(x)
+
+
+#: the least share of the commanded input's range an actuator slewing at a fitted rate must reach
+#: for the rate to be kept (:func:`_follows`)
+FOLLOW_SHARE = 0.5
+
+
+def _follows(prob, theta) -> bool:
+    """Whether the actuator of ``prob``'s fit (``theta``) reaches at least :data:`FOLLOW_SHARE` of
+    the range its records command. A slow actuator reaches its levels during the holds of a lab's
+    staircases and steps (the judged logs' rate limits all did); a rate that keeps the actuator
+    within a small part of its range makes F, G and h fit the records there alone, and the model
+    the diagnosis is given, which leaves the rate out, is then driven over the whole range by what
+    was fitted on a sliver of it. The banded friction damper's 1 Hz log (sines only) was fitted
+    with an actuator slewing at 0.14 units/s, swinging by 0.07 of the 2 units commanded: the slewed sine, a
+    triangle whose slope is the velocity's sign, stood in for the friction, and the model without
+    it missed its own records by 1.7e5 (the noise 0.26)."""
+    commanded = float(np.ptp(np.concatenate([r.u for r in prob.records])))
+    reached = float(np.ptp(np.concatenate(prob.actuated(theta))))
+    return not commanded > 0 or reached >= FOLLOW_SHARE * commanded
 
 
 def fit_rate_first(fitter: WholeModelFit, records) -> float:
@@ -69,7 +106,8 @@ def fit_rate_first(fitter: WholeModelFit, records) -> float:
     ``theta_``, ``result_``); returns its rate."""
     records = [r for r in records if r.y is not None and r.u.size > 10]
     order = max(s.order for s in (fitter.structures or STRUCTURES))
-    probs, fits, rows = _rate_fits(fitter, records, fitter.max_degree, fitter.delay, order, joint_starts=2)
+    probs, fits, rows = _rate_fits(fitter, records, fitter.max_degree, fitter.delay, order, joint_starts=2,
+                                   coarse=True)
     i = int(np.argmin([r["aic"] for r in rows]))
     _keep(fitter, probs[i], fits[i][0], rows)
     return probs[i].rate(fits[i][0])
@@ -90,12 +128,14 @@ def _joint_combos(fitter: WholeModelFit, records, kind: str, ref, degree: int, w
     return [c[1:] for c in combos]
 
 
-def _rate_fits(fitter: WholeModelFit, records, degree: int, with_delay: bool, max_order: int, joint_starts: int = 0):
+def _rate_fits(fitter: WholeModelFit, records, degree: int, with_delay: bool, max_order: int, joint_starts: int = 0,
+               coarse: bool = False):
     """Each type and structure (of order up to ``max_order``) with the rate fitted, from the border
     grid at the best of ``RATE_POINTS`` rates and of the actuator's two memories (reset to each
     record's first input, or carried over from the record before: :attr:`_Problem.carried`), and
     from the ``joint_starts`` best borders, rates and memories chosen together
-    (:func:`_joint_combos`); every start descended, each type and structure kept by its best:
+    (:func:`_joint_combos`); every start descended (``coarse``: long records on every few samples
+    first, :mod:`hwid.identify.whole_coarse`), each type and structure kept by its best:
     ``(problems, fits, table rows)``.
 
     A slow actuator's memory decides its fit: the test rig that crosses [-1, 1] in 15 s with its
@@ -128,16 +168,27 @@ def _rate_fits(fitter: WholeModelFit, records, degree: int, with_delay: bool, ma
                 t = np.concatenate([borders, grid[3:prob.rate_at], [r], grid[prob.rate_at:]])
                 probs.append(prob)
                 starts.append(_best_states(prob, t))
-    fits = _descend(probs, starts, fitter.max_nfev)
-    if joint_starts:        # each type and structure by its best descent
-        best: dict = {}
-        for p, fit in zip(probs, fits):
-            key = (p.type, str(p.structure))
-            if key not in best or fit[1] < best[key][1][1]:
-                best[key] = (p, fit)
-        probs, fits = [p for p, _ in best.values()], [f for _, f in best.values()]
+    pick = _best_of_each if joint_starts else None       # each type and structure by its best descent
+    done = coarse_first(probs, starts, fitter.max_nfev, _descend, pick) if coarse else None
+    if done is not None:
+        probs, fits = done
+    else:
+        fits = _descend(probs, starts, fitter.max_nfev)
+        if pick is not None:
+            keep = pick(probs, fits)
+            probs, fits = [probs[i] for i in keep], [fits[i] for i in keep]
     rows = [_row(p, rss) for p, (_, rss) in zip(probs, fits)]
     return probs, fits, rows
+
+
+def _best_of_each(probs, fits) -> list[int]:
+    """The index of each type and structure's best fit among ``fits`` (``(theta, rss)``)."""
+    best: dict = {}
+    for i, (p, fit) in enumerate(zip(probs, fits)):
+        key = (p.type, str(p.structure))
+        if key not in best or fit[1] < fits[best[key]][1]:
+            best[key] = i
+    return list(best.values())
 
 
 def _keep(fitter: WholeModelFit, prob, x, table) -> None:
