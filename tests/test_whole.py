@@ -23,6 +23,17 @@ def _levels_with_ramps(rng, n_levels, hold, ramp, dt, lo=-1.2, hi=1.2):
     return np.array(u)
 
 
+def _through_actuator(truth, rng, n_levels, hold, rate, dt=0.05, sigma=0.01):
+    """Two records of random levels joined by ramps, through an actuator slewing at ``rate``."""
+    from hwid.blocks.slew import slewed
+    out = []
+    for i in range(2):
+        u = _levels_with_ramps(rng, n_levels, hold, 1.0, dt)
+        x = truth.simulate(slewed(u, rate, dt), dt).x
+        out.append(Record(f"levels_{i}", dt, u, x + sigma * rng.standard_normal(u.size)))
+    return out
+
+
 def _plant(**changes):
     cfg = config.loads(__import__("yaml").safe_dump(rigs.small(**changes)))
     return cfg, from_config(cfg.plant)
@@ -251,19 +262,19 @@ def test_a_right_half_plane_zero_is_kept_only_where_it_fits_better_than_a_pole(n
     assert 0.95 < res.sigma / 0.01 < 1.05
 
 
-def test_a_slow_actuator_is_fitted_with_its_rate_from_the_start():
+@pytest.mark.parametrize("n_levels", [6, 28])
+def test_a_slow_actuator_is_fitted_with_its_rate_from_the_start(n_levels):
     """Records through an actuator slewing at 0.06 units/s (40 s to cross the range, G settling in
     2 s): the fit with the rate from the start (:func:`fit_rate_first`, the live diagnosis's answer
-    to sines the plant did not follow) finds the rate within 3 % and leaves the noise."""
-    from hwid.blocks.slew import slewed
+    to sines the plant did not follow) finds the rate within 3 % and leaves the noise. With 28
+    levels a record (23,500 samples in all, more than :data:`hwid.identify.whole_coarse.READ_ALL`)
+    the starts are descended on every k-th sample first and the best polished on every sample."""
+    from hwid.identify import whole_coarse
     from hwid.identify.whole_rate import fit_rate_first
     _, truth = _plant()
-    rng = np.random.default_rng(5)
-    dt, rate, out = 0.05, 0.06, []
-    for i in range(2):
-        u = _levels_with_ramps(rng, 6, 20.0, 1.0, dt)
-        x = truth.simulate(slewed(u, rate, dt), dt).x
-        out.append(Record(f"levels_{i}", dt, u, x + 0.01 * rng.standard_normal(u.size)))
+    rate = 0.06
+    out = _through_actuator(truth, np.random.default_rng(5), n_levels, 20.0, rate)
+    assert (whole_coarse.thinning(out) > 1) == (n_levels == 28)
     fit = WholeModelFit(max_degree=3, structures=[Structure(1, 0)], types=("backlash",))
     found = fit_rate_first(fit, out)
     assert found == pytest.approx(rate, rel=0.03)
@@ -311,28 +322,6 @@ def test_limits_at_the_inputs_centre_are_not_an_actuator_that_stops_short():
     assert not _pressed_inward(prob, -1.53, 1.33)
 
 
-def test_long_records_of_a_slow_actuator_are_fitted_coarse_first():
-    """The slow actuator above on records of 28 levels each (23,500 samples in all, more than
-    :data:`hwid.identify.whole_coarse.READ_ALL`): descended on every k-th sample first and polished on
-    every sample, the fit finds the rate within 3 % and leaves the noise, as the fit on every sample
-    does on the short records."""
-    from hwid.blocks.slew import slewed
-    from hwid.identify import whole_coarse
-    from hwid.identify.whole_rate import fit_rate_first
-    _, truth = _plant()
-    rng = np.random.default_rng(5)
-    dt, rate, out = 0.05, 0.06, []
-    for i in range(2):
-        u = _levels_with_ramps(rng, 28, 20.0, 1.0, dt)
-        x = truth.simulate(slewed(u, rate, dt), dt).x
-        out.append(Record(f"levels_{i}", dt, u, x + 0.01 * rng.standard_normal(u.size)))
-    assert whole_coarse.thinning(out) > 1
-    fit = WholeModelFit(max_degree=3, structures=[Structure(1, 0)], types=("backlash",))
-    found = fit_rate_first(fit, out)
-    assert found == pytest.approx(rate, rel=0.03)
-    assert fit.result_.sigma < 1.1 * 0.01
-
-
 def test_records_are_thinned_at_the_middle_of_each_interval_and_no_faster_than_their_input():
     """Every k-th output sample with each interval's middle input; a burn-in shrinks with the
     samples; k at most a tenth of a radian of the input's RMS frequency: 30,000 samples of a 1 rad/s
@@ -360,16 +349,11 @@ def test_a_slow_actuators_fit_keeps_no_right_half_plane_zero_a_pole_fits_better(
     at +6.3, which a diagnosis takes out as a delay; tried against one more pole
     (:func:`hwid.identify.whole_delay.pole_for_rhp_zero`, in :func:`fit_rate_added`), the zero is
     back in the left half plane, near -6, with the rate within 2 % and the residual the noise."""
-    from hwid.blocks.slew import slewed
     from hwid.identify.whole_rate import fit_rate_added
     num, den = [1.0, 6.0], [1.0, 4.5, 6.5, 3.0]
     _, truth = _plant(**{"plant.linear.den": den, "plant.linear.num": [c * den[-1] / num[-1] for c in num]})
-    rng = np.random.default_rng(13)
-    dt, rate, out = 0.05, 0.25, []
-    for i in range(2):
-        u = _levels_with_ramps(rng, 12, 6.0, 1.0, dt)
-        x = truth.simulate(slewed(u, rate, dt), dt).x
-        out.append(Record(f"levels_{i}", dt, u, x + 0.01 * rng.standard_normal(u.size)))
+    rate = 0.25
+    out = _through_actuator(truth, np.random.default_rng(13), 12, 6.0, rate)
     fit = WholeModelFit(max_degree=3, structures=[Structure(2, 0, 1)], types=("backlash",)).fit(out)
     assert fit_rate_added(fit) == pytest.approx(rate, rel=0.02)
     res = fit.result_
