@@ -38,8 +38,8 @@ def fit_rate_added(fitter: WholeModelFit) -> float | None:
     memories chosen together (as :func:`fit_rate_first` does): on judged lab logs, five slow
     actuators (0.055-0.2 units/s; three before a Backlash-Inverse or behind asymmetric borders)
     had ended every descent in another valley, the fit with a clip in the rate's place, and were
-    `unexplained`; from the joint starts the rate was found and named at 0.93-1.03x the floor, at
-    the same time or less for the diagnosis (the fit converges). The rate is kept where the
+    `unexplained`; from the joint starts the rate was found and named at 0.93-1.03x the floor
+    (8-60 s a diagnosis). The rate is kept where the
     criterion prefers the fit with it: ``fitter`` then holds that fit (``problem_``, ``theta_``,
     ``result_``, whose table gains the rows marked ``+rate``) and the rate is returned; else None
     and ``fitter`` keeps its fit (its table gains the rows)."""
@@ -51,8 +51,8 @@ def fit_rate_added(fitter: WholeModelFit) -> float | None:
     table = list(fitter.result_.selection) + rows
     # a right-half-plane zero standing in for a pole the structure lacks (order no higher than the
     # fit without the rate), which the diagnosis would take out as a delay
-    _, dt, width = _extent(prob.records)
-    pole = pole_for_rhp_zero(prob, x, width, _extent(prob.records)[0], dt, fitter.max_nfev)
+    span, dt, width = _extent(prob.records)
+    pole = pole_for_rhp_zero(prob, x, width, span, dt, fitter.max_nfev)
     if pole is not None:
         prob, x, rss = pole
         table.append(_row(prob, rss))
