@@ -330,16 +330,16 @@ def test_records_are_thinned_at_the_middle_of_each_interval_and_no_faster_than_t
     from hwid.identify.whole_coarse import COARSE_SAMPLES, thinned, thinning
     dt = 0.01
     t = np.arange(30000) * dt
-    fast = Record("sine", dt, np.sin(t), np.cos(t), attrs={"burn_in": 25})
-    k = thinning([fast])
+    sine = Record("sine", dt, np.sin(t), np.cos(t), attrs={"burn_in": 25})
+    k = thinning([sine])
     assert k == min(int(np.ceil(30000 / COARSE_SAMPLES)), 10)
-    thin = thinned(fast, 4)
+    thin = thinned(sine, 4)
     assert thin.dt == pytest.approx(0.04) and thin.u.size == thin.y.size == 7500
     assert thin.u[:3] == pytest.approx(np.sin(t[[2, 6, 10]]))
     assert thin.y[:3] == pytest.approx(np.cos(t[[0, 4, 8]]))
     assert thin.attrs["burn_in"] == 7
-    slow = Record("sine", dt, np.sin(10 * t), np.cos(t))
-    assert thinning([slow]) == 1                          # 0.1 / (10 rad/s * 0.01 s)
+    fast = Record("fast", dt, np.sin(10 * t), np.cos(t))
+    assert thinning([fast]) == 1                          # 0.1 / (10 rad/s * 0.01 s)
     assert thinning([Record("short", dt, np.sin(t[:8000]), np.cos(t[:8000]))]) == 1
 
 
@@ -360,3 +360,24 @@ def test_a_slow_actuators_fit_keeps_no_right_half_plane_zero_a_pole_fits_better(
     assert res.structure == "3p0q1z"
     assert np.roots(res.num) == pytest.approx([-6.0], rel=0.1)
     assert res.sigma < 1.05 * 0.01
+
+
+def test_a_rate_is_kept_only_where_the_actuator_follows_half_the_commanded_range():
+    """A 1 Hz sine of amplitude 1 through an actuator slewing at 0.14 units/s swings by 0.07 of the
+    2 units commanded (the friction damper's fit): not an actuator that follows
+    (:func:`hwid.identify.whole_rate._follows`); at 8 units/s, faster than the sine ever moves
+    (2 pi units/s), it passes the sine on whole."""
+    from hwid.identify.whole import _Problem
+    from hwid.identify.whole_rate import FOLLOW_SHARE, _follows
+    dt = 0.01
+    u = np.sin(2 * np.pi * np.arange(1000) * dt)
+    prob = _Problem([Record("sine", dt, u, u)], "backlash", Structure(1, 0), 3, False, with_rate=True)
+    theta = np.zeros(prob.n_outer)
+    reach = {}
+    for rate in (0.14, 8.0):
+        theta[prob.rate_at] = np.log(rate)
+        reach[rate] = float(np.ptp(np.concatenate(prob.actuated(theta)))) / float(np.ptp(u))
+        assert _follows(prob, theta) == (reach[rate] >= FOLLOW_SHARE)
+    # half a period at 0.14 units/s is 0.07; the first swing, from rest, lasts a little longer
+    assert reach[0.14] == pytest.approx(0.07 / 2, rel=0.1)
+    assert reach[8.0] == pytest.approx(1.0, abs=1e-12)

@@ -20,6 +20,7 @@ import dataclasses
 
 import numpy as np
 
+from hwid.identify.whole import _row
 from hwid.plant import Record
 
 #: records of at most this many samples in all are descended on every sample
@@ -71,7 +72,6 @@ def coarse_first(probs, starts, max_nfev: int, descend, pick=None) -> tuple[list
     fits)`` names (their indices; default all) are polished on every sample, at most
     :data:`POLISH_BEST` of them, best first by the selection's criterion on the coarse records:
     the others are not selected whatever the polish does, which moves a fit by little."""
-    from hwid.identify.whole import _row
     k = thinning(probs[0].records)
     if k <= 1:
         return None

@@ -47,7 +47,7 @@ def fit_rate_added(fitter: WholeModelFit) -> float | None:
     probs, fits, rows = _rate_fits(fitter, base.records, base.degree, base.with_delay, base.structure.order,
                                    joint_starts=2)
     i = int(np.argmin([r["aic"] for r in rows]))
-    prob, x = probs[i], fits[i][0]
+    prob, x, row = probs[i], fits[i][0], rows[i]
     table = list(fitter.result_.selection) + rows
     # a right-half-plane zero standing in for a pole the structure lacks (order no higher than the
     # fit without the rate), which the diagnosis would take out as a delay
@@ -55,10 +55,9 @@ def fit_rate_added(fitter: WholeModelFit) -> float | None:
     pole = pole_for_rhp_zero(prob, x, width, span, dt, fitter.max_nfev)
     if pole is not None:
         prob, x, rss = pole
-        table.append(_row(prob, rss))
-        rows = rows + [table[-1]]
-        i = len(rows) - 1
-    if rows[i]["aic"] >= min(r["aic"] for r in fitter.result_.selection) or not _follows(prob, x):
+        row = _row(prob, rss)
+        table.append(row)
+    if row["aic"] >= min(r["aic"] for r in fitter.result_.selection) or not _follows(prob, x):
         fitter.result_ = replace(fitter.result_, selection=tuple(table))
         return None
     _keep(fitter, prob, x, table)
@@ -77,9 +76,9 @@ def _follows(prob, theta) -> bool:
     within a small part of its range makes F, G and h fit the records there alone, and the model
     the diagnosis is given, which leaves the rate out, is then driven over the whole range by what
     was fitted on a sliver of it. The banded friction damper's 1 Hz log (sines only) was fitted
-    with an actuator slewing at 0.14 units/s, swinging by 0.07 of the 2 units commanded: the slewed sine, a
-    triangle whose slope is the velocity's sign, stood in for the friction, and the model without
-    it missed its own records by 1.7e5 (the noise 0.26)."""
+    with an actuator slewing at 0.14 units/s, swinging by 0.07 of the 2 units commanded: the
+    slewed sine, a triangle whose slope is the velocity's sign, stood in for the friction, and the
+    model without it missed its own records by 1.7e5 (the noise 0.26)."""
     commanded = float(np.ptp(np.concatenate([r.u for r in prob.records])))
     reached = float(np.ptp(np.concatenate(prob.actuated(theta))))
     return not commanded > 0 or reached >= FOLLOW_SHARE * commanded
