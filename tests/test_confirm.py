@@ -103,3 +103,53 @@ def test_the_loop_test_refuses_only_a_remainder_above_the_floor():
     assert confirm.dynamics_left(loop, "curved_borders", 0.99, 1.0) == ""
     assert confirm.dynamics_left([{"kind": "loop", "evidence": "", "p_value": 1e-9}], "curved_borders", 1.2, 1.0) == ""
     assert confirm.dynamics_left([{"kind": "none", "evidence": "", "p_value": 0.5}], "curved_borders", 1.2, 1.0) == ""
+
+
+def _through_lag(x, tau, dt=0.02):
+    """``x`` through a first-order lag whose time constant ``tau(x_out)`` may depend on the level
+    of its own output (a scalar: one lag at every level), by Euler steps of ``dt``."""
+    tau = tau if callable(tau) else (lambda _, t=float(tau): t)
+    y = np.empty_like(x)
+    s = x[0]
+    for i, xi in enumerate(x):
+        y[i] = s
+        s += dt / tau(s) * (xi - s)
+    return y
+
+
+def _moves(n=12000, dt=0.02):
+    """A staircase over [-1, 1] with a slow sine on top, through a 0.3 s lag: moves at every level."""
+    t = np.arange(n) * dt
+    steps = np.repeat(np.random.default_rng(3).uniform(-0.9, 0.9, n // 400), 400)[:n]
+    return _through_lag(steps + 0.1 * np.sin(0.7 * t), 0.3, dt)
+
+
+def test_one_lag_at_every_level_is_not_refused_even_when_its_timing_is_off():
+    """A sensor lag of 0.5 s, predicted with 0.45 s: the remainder is the slope times the misfit,
+    the same at every level, so the test finds no growth toward the ends."""
+    x = _moves()
+    y = _through_lag(x, 0.5) + _noise(5, x.size)
+    for tau in (0.5, 0.45):
+        z = confirm.lag_by_level([y], [_through_lag(x, tau)], [np.ones(x.size, bool)])
+        assert abs(z) < 3.0
+    cand = Candidate("sensor_lag", "output", {}, 0.0, 0.0, 1.0, 1.0, 2.0, predictions=[_through_lag(x, 0.45)])
+    assert confirm.level_left(cand, [y], [np.ones(x.size, bool)]) == ""
+
+
+def test_a_lag_that_changes_between_the_ends_of_the_range_and_its_middle_is_refused():
+    """A lag of 1.2 s in the middle of the range and 0.3 s at its ends (a saturation inside the
+    dynamics brings the output to its limits early), predicted by the one lag between: the test
+    finds the difference at far more than LEVEL_Z. The other way round (0.3 s in the middle,
+    1.2 s at the ends) is refused too, with z as far negative: a sensor's lag is one lag."""
+    x = _moves()
+    ones = [np.ones(x.size, bool)]
+    shrinks = _through_lag(x, lambda s: 1.2 - 0.9 * s * s) + _noise(6, x.size)
+    one = _through_lag(x, 0.9)
+    assert confirm.lag_by_level([shrinks], [one], ones) > 2 * confirm.LEVEL_Z
+    cand = Candidate("sensor_lag", "output", {}, 0.0, 0.0, 1.0, 1.0, 2.0, predictions=[one])
+    assert "is shorter toward both ends" in confirm.level_left(cand, [shrinks], ones)
+    grows = _through_lag(x, lambda s: 0.3 + 0.9 * s * s) + _noise(7, x.size)
+    assert confirm.lag_by_level([grows], [_through_lag(x, 0.6)], ones) < -2 * confirm.LEVEL_Z
+    # a clip or a bend is not asked: its parameters do not move the output's timing
+    clip = Candidate("input_saturation", "input", {}, 0.0, 0.0, 1.0, 1.0, 2.0, predictions=[one])
+    assert confirm.level_left(clip, [shrinks], ones) == ""

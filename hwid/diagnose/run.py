@@ -327,8 +327,7 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
     confirmation = None
     remainder = (val.remainder_of(verdict.predictions, sim_model.input) if not identified and isinstance(verdict, Candidate)
                  else None)
-    left = (confirm.dynamics_left(remainder, verdict.effect, verdict.gap_after, floor.sigma) if remainder is not None
-            else "")
+    left = _left_over(verdict, val, remainder, floor.sigma)
     if left:
         why = left
         echo(why)
@@ -368,6 +367,20 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
          f"(block {summary['verdict']['block']}, explained {explained:.2f}); "
          f"gap {summary['gap_before']:.4g} -> {summary['gap_after']:.4g}, noise floor {floor.sigma:.4g}")
     return summary
+
+
+def _left_over(verdict, val: Validation, remainder, sigma: float) -> str:
+    """Why a named verdict still leaves what its effect cannot cause (``""`` if nothing): with a
+    given model, a remainder that follows the output's past (:func:`hwid.diagnose.confirm.dynamics_left`);
+    a lag or a delay that grows toward the ends of the output's range
+    (:func:`hwid.diagnose.confirm.level_left`)."""
+    if not isinstance(verdict, Candidate):
+        return ""
+    if remainder is not None:
+        left = confirm.dynamics_left(remainder, verdict.effect, verdict.gap_after, sigma)
+        if left:
+            return left
+    return confirm.level_left(verdict, val.y_val, val.m_val)
 
 
 def _outputs_seen(val: Validation, origin: dict) -> tuple[list, list]:
