@@ -74,6 +74,9 @@ def test_sensor_lag_named_with_its_time_constant(lag):
     assert s["gap_before"] > 5 * s["noise_floor"]
     assert s["gap_after"] < 1.2 * s["noise_floor"]
     assert s["verdict"]["explained_fraction"] > 0.95
+    # a sensor's lag is one lag at every level: the level test does not refuse it
+    level = s["test"]["lag_by_level"]
+    assert level["effect"] == "sensor_lag" and abs(level["z"]) < level["bound"]
     # the noise floor estimated from repeats is the rig's noise
     assert abs(s["noise_floor"] - R.NOISE) < 0.1 * R.NOISE
 

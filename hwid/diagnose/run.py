@@ -327,6 +327,7 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
     confirmation = None
     remainder = (val.remainder_of(verdict.predictions, sim_model.input) if not identified and isinstance(verdict, Candidate)
                  else None)
+    named = verdict
     left = _left_over(verdict, val, remainder, floor.sigma)
     if left:
         why = left
@@ -356,6 +357,9 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
         summary["verdict"]["why"] = why
     if remainder is not None:
         summary["test"]["verdict_remainder"] = remainder
+    if isinstance(named, Candidate) and named.effect in confirm.LAG_LIKE and named.predictions:
+        summary["test"]["lag_by_level"] = {"effect": named.effect, "bound": confirm.LEVEL_Z,
+                                           "z": confirm.lag_by_level(val.y_val, named.predictions, val.m_val)}
     if extra is not None:
         extra(fitter, cands, verdict, groups, summary)
     summary["cost"]["seconds_total"] = time.perf_counter() - t_start
