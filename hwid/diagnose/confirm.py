@@ -266,5 +266,6 @@ def level_left(verdict, ys, masks) -> str:
         return ""
     how = "shorter" if z > 0 else "longer"
     return (f"{verdict.effect} takes the gap down, but the lag it needs is {how} toward both ends of the output's "
-            f"range than in its middle (z = {z:.1f}): a sensor's lag or a delay is the same at every level, and "
-            f"a saturation inside the dynamics is not; unexplained")
+            f"range than in its middle (z = {z:.1f}): a sensor's lag or a delay is the same at every level, so "
+            f"something that depends on the level acts inside the dynamics (a saturation between G's lags, say); "
+            f"unexplained")

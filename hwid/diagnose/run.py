@@ -376,7 +376,7 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
 def _left_over(verdict, val: Validation, remainder, sigma: float) -> str:
     """Why a named verdict still leaves what its effect cannot cause (``""`` if nothing): with a
     given model, a remainder that follows the output's past (:func:`hwid.diagnose.confirm.dynamics_left`);
-    a lag or a delay that grows toward the ends of the output's range
+    a lag or a delay that differs between the ends of the output's range and its middle
     (:func:`hwid.diagnose.confirm.level_left`)."""
     if not isinstance(verdict, Candidate):
         return ""
