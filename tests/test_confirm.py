@@ -132,8 +132,8 @@ def test_one_lag_at_every_level_is_not_refused_even_when_its_timing_is_off():
     for tau in (0.5, 0.45):
         z = confirm.lag_by_level([y], [_through_lag(x, tau)], [np.ones(x.size, bool)])
         assert abs(z) < 3.0
-    cand = Candidate("sensor_lag", "output", {}, 0.0, 0.0, 1.0, 1.0, 2.0, predictions=[_through_lag(x, 0.45)])
-    assert confirm.level_left(cand, [y], [np.ones(x.size, bool)]) == ""
+    z = confirm.lag_by_level([y], [_through_lag(x, 0.45)], [np.ones(x.size, bool)])
+    assert confirm.level_left("sensor_lag", z) == ""
 
 
 def test_a_lag_that_changes_between_the_ends_of_the_range_and_its_middle_is_refused():
@@ -145,11 +145,10 @@ def test_a_lag_that_changes_between_the_ends_of_the_range_and_its_middle_is_refu
     ones = [np.ones(x.size, bool)]
     shrinks = _through_lag(x, lambda s: 1.2 - 0.9 * s * s) + _noise(6, x.size)
     one = _through_lag(x, 0.9)
-    assert confirm.lag_by_level([shrinks], [one], ones) > 2 * confirm.LEVEL_Z
-    cand = Candidate("sensor_lag", "output", {}, 0.0, 0.0, 1.0, 1.0, 2.0, predictions=[one])
-    assert "is shorter toward both ends" in confirm.level_left(cand, [shrinks], ones)
+    z = confirm.lag_by_level([shrinks], [one], ones)
+    assert z > 2 * confirm.LEVEL_Z
+    assert "is shorter toward both ends" in confirm.level_left("sensor_lag", z)
     grows = _through_lag(x, lambda s: 0.3 + 0.9 * s * s) + _noise(7, x.size)
     assert confirm.lag_by_level([grows], [_through_lag(x, 0.6)], ones) < -2 * confirm.LEVEL_Z
     # a clip or a bend is not asked: its parameters do not move the output's timing
-    clip = Candidate("input_saturation", "input", {}, 0.0, 0.0, 1.0, 1.0, 2.0, predictions=[one])
-    assert confirm.level_left(clip, [shrinks], ones) == ""
+    assert confirm.level_left("input_saturation", z) == ""

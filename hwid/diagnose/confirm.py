@@ -255,17 +255,14 @@ def lag_by_level(ys, predictions, masks) -> float:
     return float(c / se) if se > 0 else 0.0
 
 
-def level_left(verdict, ys, masks) -> str:
+def level_left(effect: str, z: float | None) -> str:
     """Why a lag-like verdict (:data:`LAG_LIKE`) is ``unexplained`` where the lag it needs differs
-    between the ends of the output's range and its middle (:func:`lag_by_level` at least
-    :data:`LEVEL_Z` either way); ``""`` otherwise."""
-    if verdict.effect not in LAG_LIKE or not verdict.predictions:
-        return ""
-    z = lag_by_level(ys, verdict.predictions, masks)
-    if abs(z) < LEVEL_Z:
+    between the ends of the output's range and its middle (``z`` from :func:`lag_by_level` at
+    least :data:`LEVEL_Z` either way); ``""`` otherwise, and for any other effect."""
+    if effect not in LAG_LIKE or z is None or abs(z) < LEVEL_Z:
         return ""
     how = "shorter" if z > 0 else "longer"
-    return (f"{verdict.effect} takes the gap down, but the lag it needs is {how} toward both ends of the output's "
+    return (f"{effect} takes the gap down, but the lag it needs is {how} toward both ends of the output's "
             f"range than in its middle (z = {z:.1f}): a sensor's lag or a delay is the same at every level, so "
             f"something that depends on the level acts inside the dynamics (a saturation between G's lags, say); "
             f"unexplained")

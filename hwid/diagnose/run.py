@@ -327,8 +327,8 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
     confirmation = None
     remainder = (val.remainder_of(verdict.predictions, sim_model.input) if not identified and isinstance(verdict, Candidate)
                  else None)
-    named = verdict
-    left = _left_over(verdict, val, remainder, floor.sigma)
+    level = _lag_by_level(verdict, val)
+    left = _left_over(verdict, remainder, floor.sigma, level)
     if left:
         why = left
         echo(why)
@@ -357,9 +357,8 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
         summary["verdict"]["why"] = why
     if remainder is not None:
         summary["test"]["verdict_remainder"] = remainder
-    if isinstance(named, Candidate) and named.effect in confirm.LAG_LIKE and named.predictions:
-        summary["test"]["lag_by_level"] = {"effect": named.effect, "bound": confirm.LEVEL_Z,
-                                           "z": confirm.lag_by_level(val.y_val, named.predictions, val.m_val)}
+    if level is not None:
+        summary["test"]["lag_by_level"] = level
     if extra is not None:
         extra(fitter, cands, verdict, groups, summary)
     summary["cost"]["seconds_total"] = time.perf_counter() - t_start
@@ -373,18 +372,28 @@ def conclude(cfg, out: Path, json_path, val: Validation, floor, additive: dict, 
     return summary
 
 
-def _left_over(verdict, val: Validation, remainder, sigma: float) -> str:
+def _lag_by_level(verdict, val: Validation) -> dict | None:
+    """For a verdict of a sensor lag or a delay (:data:`hwid.diagnose.confirm.LAG_LIKE`), how far
+    the lag it needs differs between the ends of the output's range and its middle
+    (:func:`hwid.diagnose.confirm.lag_by_level`), as JSON ``test.lag_by_level``; None otherwise."""
+    if not (isinstance(verdict, Candidate) and verdict.effect in confirm.LAG_LIKE and verdict.predictions):
+        return None
+    return {"effect": verdict.effect, "bound": confirm.LEVEL_Z,
+            "z": confirm.lag_by_level(val.y_val, verdict.predictions, val.m_val)}
+
+
+def _left_over(verdict, remainder, sigma: float, level: dict | None) -> str:
     """Why a named verdict still leaves what its effect cannot cause (``""`` if nothing): with a
     given model, a remainder that follows the output's past (:func:`hwid.diagnose.confirm.dynamics_left`);
-    a lag or a delay that differs between the ends of the output's range and its middle
-    (:func:`hwid.diagnose.confirm.level_left`)."""
+    a lag or a delay that differs between the ends of the output's range and its middle (``level``,
+    :func:`_lag_by_level`; :func:`hwid.diagnose.confirm.level_left`)."""
     if not isinstance(verdict, Candidate):
         return ""
     if remainder is not None:
         left = confirm.dynamics_left(remainder, verdict.effect, verdict.gap_after, sigma)
         if left:
             return left
-    return confirm.level_left(verdict, val.y_val, val.m_val)
+    return confirm.level_left(verdict.effect, level["z"]) if level is not None else ""
 
 
 def _outputs_seen(val: Validation, origin: dict) -> tuple[list, list]:
