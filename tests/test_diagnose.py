@@ -417,6 +417,16 @@ def test_the_second_test_names_an_effect_held_near_the_floor_that_explains_a_qua
         assert by["significant"] is named
         _, by = second_test([c], 0.0101, nf, False, 11332.0, refloor_first=False)
         assert by["significant"]       # without the bar the plain rig's resonance passes the ratio
+    # identified, no share of the excess is asked: a judged log's sensor lag of 0.27 s explained
+    # 0.07 of an excess that holds the identified model's own error, at a score of 90.4 (no plain
+    # rig's best candidate, identified, scored above -2.1); a quarter would have called it `none`
+    lag = Candidate("sensor_lag", "output", {}, 0.0099, 0.0099, 0.07, 90.4, 2.0)
+    _, by = second_test([lag], 0.0100, nf, False, 11332.0, refloor_first=False, min_share=0.0)
+    assert by["significant"] and by["likelihood_ratio"] > 25
+    _, by = second_test([lag], 0.0100, nf, False, 11332.0, refloor_first=False)
+    assert not by["significant"]
+    plain = Candidate("sensor_lag", "output", {}, 0.0099, 0.0099, 0.07, -2.1, 2.0)
+    assert not second_test([plain], 0.0100, nf, False, 11332.0, refloor_first=False, min_share=0.0)[1]["significant"]
 
 
 def test_drift_is_additive_against_a_wandering_gain():

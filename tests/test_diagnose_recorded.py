@@ -234,6 +234,9 @@ def test_a_delay_the_whole_fit_takes_into_g_is_named_a_time_delay(tmp_path):
     assert s["model_refit"]["excess_phase_taken_out_s"] == pytest.approx(g["delay"])
     params = next(c for c in s["candidates"] if c["effect"] == "time_delay")["params"]
     assert 0.5 * delay < params["delay_s"] <= delay + 0.5 * logs.DT
+    # one delay at every level, asked of the whole log (its fit part too)
+    level = s["test"]["lag_by_level"]
+    assert level["records"] == "fit and validation" and abs(level["z"]) < level["bound"]
 
 
 def test_a_g_beyond_the_whole_fits_structures_is_no_false_alarm(tmp_path):
@@ -392,6 +395,22 @@ def test_drift_from_the_residual_needs_a_slow_wander_that_the_smoother_takes_out
     bent = lambda score: [Candidate("curved_borders", "input", {}, 0.01, 0.01, 0.75, score, 13.0)]
     assert not drift_from_residual(_log_validation(walks, x), drift(0.95) + bent(120.0), {}, _quiet)
     assert drift_from_residual(_log_validation(walks, x), drift(0.95) + bent(80.0), {}, _quiet)
+
+
+def test_an_excess_an_effect_predicts_from_the_fit_part_is_no_drift():
+    """With a model identified from the log (hwid/diagnose/log_drift.py, ``input_predicts_it``): a
+    deterministic candidate fitted on the fit part that predicts half the validation part's excess
+    or more shows the excess follows the input, whatever the drift smoother takes out of it (a dead
+    zone's remainder, 0.74 against the smoother's 0.81); one that predicts a tenth does not rule a
+    drift out, nor does one that loses to the model (a negative score)."""
+    from hwid.diagnose.log_drift import input_predicts_it
+    drift = Candidate("drift", "noise", {"window_s": 2.0}, 0.012, 0.012, 0.81, 120.0, 60.0, predictions=[0])
+    dead = lambda share, score=100.0: Candidate("input_deadzone", "input", {"delta": 0.2}, 0.014, 0.014, share,
+                                                score, 1.0, predictions=[0])
+    assert input_predicts_it([drift, dead(0.74)], _quiet)
+    assert not input_predicts_it([drift, dead(0.09)], _quiet)
+    assert not input_predicts_it([drift, dead(0.74, score=-5.0)], _quiet)
+    assert not input_predicts_it([drift], _quiet)
 
 
 def test_a_drift_is_told_from_the_refit_residual_of_an_identified_model():

@@ -566,6 +566,13 @@ class EffectFitter(HRefit):
             return self._refit_predict(eff, theta, "val")
         return [eff.simulate(self.sv, theta, i) for i in range(len(self.yv))]
 
+    def fit_predictions(self, c: Candidate) -> list[np.ndarray]:
+        """A fitted deterministic candidate's outputs on the fit experiments, whole (with an
+        identified model, h re-estimated on them as in its fit)."""
+        if self.refit_h:
+            return self._refit_predict(c.fitted, c.theta, "fit")
+        return [c.fitted.simulate(self.sf, c.theta, i) for i in range(len(self.yf))]
+
     def _score(self, eff, theta, k) -> Candidate:
         preds = self._predict(eff, theta)
         res = [(y - x)[m] for y, x, m in zip(self.yv, preds, self.mv)]
