@@ -138,8 +138,8 @@ def input_predicts_it(cands, echo) -> bool:
     the log's fit part cannot know where it has wandered to on the validation part, and the refit
     model re-estimates h's offset on the fit part, so no effect takes a drift's level over either.
     A dead zone in a log can leave a remainder the drift smoother follows as well as the dead zone
-    does (0.81-0.89 of the excess against its 0.67-0.83, on six of the judged seeds' logs); no
-    drift rig's log had a deterministic candidate above 0.09. With a given model, a bend's offset
+    does (0.81-0.89 of the excess against its 0.67-0.83, five of the judged seeds' logs); no
+    drift rig's log (43) had a deterministic candidate above 0.09. With a given model, a bend's offset
     takes over a drift's mean on the validation part (up to 0.78 of the excess), and this is not
     asked."""
     best = max((c for c in cands if c.effect != "drift" and c.score > 0 and c.predictions),

@@ -16,8 +16,8 @@ from hwid import HwidError, protocols
 from hwid.diagnose import confirm, experiments, findings, gap, rank, residual_structure
 from hwid.diagnose.baseline import has_outside_modes
 from hwid.diagnose.effects import CATALOGUE, Scale, catalogue
-from hwid.diagnose.log_drift import (drift_from_residual, drift_leaves_little, drift_takes_the_excess, input_predicts_it,
-                                     repeats_under_best)
+from hwid.diagnose.log_drift import (drift_from_residual, drift_leaves_little, drift_takes_the_excess,
+                                     input_predicts_it, repeats_under_best)
 from hwid.diagnose.modelsim import ModelSim
 from hwid.diagnose.sim_side import load_model
 from hwid.diagnose.verdict import (Candidate, alternative_baseline, eligible, indistinguishable, named_from_rails,
