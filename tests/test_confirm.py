@@ -132,8 +132,7 @@ def test_one_lag_at_every_level_is_not_refused_even_when_its_timing_is_off():
     for tau in (0.5, 0.45):
         z = confirm.lag_by_level([y], [_through_lag(x, tau)], [np.ones(x.size, bool)])
         assert abs(z) < 3.0
-    z = confirm.lag_by_level([y], [_through_lag(x, 0.45)], [np.ones(x.size, bool)])
-    assert confirm.level_left("sensor_lag", z) == ""
+    assert confirm.level_left("sensor_lag", z) == ""      # z of the lag 10 % off
 
 
 def test_a_lag_that_changes_between_the_ends_of_the_range_and_its_middle_is_refused():

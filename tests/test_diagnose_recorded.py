@@ -404,9 +404,9 @@ def test_an_excess_an_effect_predicts_from_the_fit_part_is_no_drift():
     zone's remainder, 0.74 against the smoother's 0.81); one that predicts a tenth does not rule a
     drift out, nor does one that loses to the model (a negative score)."""
     from hwid.diagnose.log_drift import input_predicts_it
-    drift = Candidate("drift", "noise", {"window_s": 2.0}, 0.012, 0.012, 0.81, 120.0, 60.0, predictions=[0])
+    drift = Candidate("drift", "noise", {"window_s": 2.0}, 0.012, 0.012, 0.81, 120.0, 60.0)
     dead = lambda share, score=100.0: Candidate("input_deadzone", "input", {"delta": 0.2}, 0.014, 0.014, share,
-                                                score, 1.0, predictions=[0])
+                                                score, 1.0)
     assert input_predicts_it([drift, dead(0.74)], _quiet)
     assert not input_predicts_it([drift, dead(0.09)], _quiet)
     assert not input_predicts_it([drift, dead(0.74, score=-5.0)], _quiet)

@@ -113,7 +113,7 @@ def drift_from_residual(val: Validation, cands, additive: dict, echo, x_model=No
         echo(f"the slow part of the residual follows the motion ({share:.2f} of it explained): a drift is not told "
              f"from the residual")
         return False
-    half = next((c for c in cands if c.effect != "drift" and c.explained_fraction >= 0.5 and c.score > 0), None)
+    half = explaining_half(cands)
     if half is not None:
         held = gap.motion_share(segments, width, held=True)
         additive["motion_share_held"] = held
@@ -142,18 +142,24 @@ def input_predicts_it(cands, echo) -> bool:
     drift rig's log (43) had a deterministic candidate above 0.09. With a given model, a bend's offset
     takes over a drift's mean on the validation part (up to 0.78 of the excess), and this is not
     asked."""
-    best = max((c for c in cands if c.effect != "drift" and c.score > 0 and c.predictions),
-               key=lambda c: c.explained_fraction, default=None)
-    if best is None or best.explained_fraction < PREDICTED_SHARE:
+    best = explaining_half(cands)
+    if best is None:
         return False
     echo(f"{best.effect}, fitted on the fit part, predicts {best.explained_fraction:.2f} of the validation part's "
          f"excess: the excess follows the input's history, and a drift is not named")
     return True
 
 
-#: the share of a log's validation excess a deterministic candidate predicts, with an identified
-#: model, that rules a drift out (:func:`input_predicts_it`)
+#: the share of the excess a deterministic candidate explains (with a positive score) that makes
+#: a remainder of the input's history plausible (:func:`explaining_half`)
 PREDICTED_SHARE = 0.5
+
+
+def explaining_half(cands):
+    """The best ranked deterministic candidate that explains at least :data:`PREDICTED_SHARE` of
+    the excess with a positive score, or None."""
+    return next((c for c in cands if c.effect != "drift" and c.explained_fraction >= PREDICTED_SHARE
+                 and c.score > 0), None)
 
 
 def drift_leaves_little(cands, sigma: float, echo) -> bool:
