@@ -12,7 +12,7 @@ common case (no delay, polynomial h); :meth:`hwid.model.HWModel.simulate` uses t
 otherwise.
 
 numba's cache keys a kernel on its own file only: after an edit to ``horner_into`` or
-:func:`hwid.blocks.noise.standard_normal`, delete ``hwid/blocks/__pycache__`` or :func:`run_chain`
+:func:`hwid.blocks.noise.add_white`, delete ``hwid/blocks/__pycache__`` or :func:`run_chain`
 keeps running the old code.
 """
 from __future__ import annotations
@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from hwid.blocks.noise import standard_normal
+from hwid.blocks.noise import add_white
 from hwid.blocks.static import horner_into
 
 #: Samples per block: v, w, x and y of a block fit in the L1 cache together.
@@ -155,7 +155,4 @@ def run_chain(u, inverse, a_up, b_up, a_dn, b_dn, state0, Phi, G1, G0, C, D, x0,
         vp = prev
         horner_into(wb, coef, xb)
         if rng is not None:
-            yb = y[s:e]
-            bitgen = rng.bit_generator
-            for k in range(e - s):
-                yb[k] = xb[k] + std * standard_normal(bitgen)
+            add_white(xb, rng, std, y[s:e])
