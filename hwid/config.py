@@ -313,7 +313,8 @@ class WholeIdCfg(_Strict):
     enabled: bool = Field(default=False, description="hwid run also fits the whole model by output error (whole.h5).")
     max_degree: Annotated[int, Field(ge=1, le=9)] = Field(default=5, description="Highest degree of h_bar tried.")
     max_order: Annotated[int, Field(ge=1, le=3)] = Field(
-        default=3, description="Highest order of G tried (real poles, pole pairs, with and without a zero).")
+        default=3, description="Highest order of G tried (real poles, pole pairs, with and without a zero); one "
+                                "more pole or pair may replace a right-half-plane zero or a delay where it fits better.")
     delay: bool = Field(default=False, description="Also fit a pure delay of G.")
     input_type: Literal["auto", "backlash", "backlash_inverse"] = Field(
         default="auto", description="Type of F tried; auto: both, the criterion decides (after the stages: theirs).")
