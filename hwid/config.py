@@ -4,7 +4,8 @@
 the nearest valid name), checks the physics (stable G with G(0) != 0, slopes > 0, d_plus > d_minus,
 borders that do not cross in the working range, levels and frequencies that make sense for dt)
 and returns a frozen :class:`Config`. Every failure raises :class:`ConfigError` whose message is one
-line: ``FILE: key.path: reason``. Every key is documented in ``configs/README.md``.
+line: ``FILE: key.path: reason``. Every key is documented in ``docs/reference/config.md``, generated
+from the descriptions here.
 """
 from __future__ import annotations
 
@@ -36,16 +37,18 @@ class _Strict(BaseModel):
 
 
 class Sampling(_Strict):
-    dt: Pos
+    dt: Pos = Field(description="Sample time in seconds: the grid every experiment (simulated or recorded) is on.")
 
 
 class InputNonlinearityCfg(_Strict):
-    type: Literal["backlash", "backlash_inverse"]
-    slope_up: Pos
-    slope_down: Pos
-    d_plus: Finite
-    d_minus: Finite
-    initial_state: Optional[Finite] = None
+    type: Literal["backlash", "backlash_inverse"] = Field(
+        description="F of eq. (3a): a Backlash (eq. 1) or a Backlash-Inverse (eq. 2).")
+    slope_up: Pos = Field(description="S^a, the slope of the ascending border.")
+    slope_down: Pos = Field(description="S^d, the slope of the descending border.")
+    d_plus: Finite = Field(description="d^+, where the ascending border crosses zero; must exceed d_minus.")
+    d_minus: Finite = Field(description="d^-, where the descending border crosses zero.")
+    initial_state: Optional[Finite] = Field(
+        default=None, description="F's output before the first sample (null: 0 clipped into the band).")
 
     @model_validator(mode="after")
     def _gap(self):
@@ -55,9 +58,12 @@ class InputNonlinearityCfg(_Strict):
 
 
 class LinearCfg(_Strict):
-    num: list[Finite] = Field(min_length=1)
-    den: list[Finite] = Field(min_length=1)
-    delay: NonNeg = 0.0
+    num: list[Finite] = Field(min_length=1, description="Numerator of G(s), descending powers of s.")
+    den: list[Finite] = Field(
+        min_length=1, description="Denominator of G(s), descending powers of s; G must be proper, "
+                                  "asymptotically stable, with G(0) != 0.")
+    delay: NonNeg = Field(default=0.0, description="Pure delay of G in seconds (exact for the sampled input, "
+                                                   "fractional samples included).")
 
     @model_validator(mode="after")
     def _stable(self):
@@ -80,13 +86,18 @@ class LinearCfg(_Strict):
 
 
 class PiecewisePiece(_Strict):
-    upper: Optional[Finite] = None  # right end of this piece (None on the last piece)
-    polynomial: list[Finite] = Field(min_length=1)
+    upper: Optional[Finite] = Field(default=None, description="Right end of this piece's range of w "
+                                                              "(left out on the last piece).")
+    polynomial: list[Finite] = Field(min_length=1, description="The piece's coefficients, ascending powers of w.")
 
 
 class OutputNonlinearityCfg(_Strict):
-    polynomial: Optional[list[Finite]] = Field(default=None, min_length=1)
-    pieces: Optional[list[PiecewisePiece]] = Field(default=None, min_length=1)
+    polynomial: Optional[list[Finite]] = Field(
+        default=None, min_length=1, description="h(w) = sum c_i w^i, ascending powers; c_0 must be 0 "
+                                                "(h^-1(0) = 0). Give this or pieces.")
+    pieces: Optional[list[PiecewisePiece]] = Field(
+        default=None, min_length=1, description="A piecewise polynomial h: each piece applies up to its upper. "
+                                                "Give this or polynomial.")
 
     @model_validator(mode="after")
     def _one_form(self):
@@ -109,16 +120,18 @@ class OutputNonlinearityCfg(_Strict):
 
 
 class NoiseCfg(_Strict):
-    std: NonNeg = 0.0
-    ar: Annotated[float, Field(ge=0.0, lt=1.0)] = 0.0   # AR(1) pole: 0 = white
+    std: NonNeg = Field(default=0.0, description="Standard deviation of the output noise xi(t) of eq. (3c).")
+    ar: Annotated[float, Field(ge=0.0, lt=1.0)] = Field(
+        default=0.0, description="AR(1) pole of coloured noise (0: white); std stays the marginal standard deviation.")
 
 
 class ChannelCfg(_Strict):
     """A recorded signal: a column (name, or 0-based index), and ``value = scale * raw + offset``."""
 
-    column: Union[Annotated[int, Field(ge=0)], Annotated[str, Field(min_length=1)]]
-    scale: Finite = 1.0
-    offset: Finite = 0.0
+    column: Union[Annotated[int, Field(ge=0)], Annotated[str, Field(min_length=1)]] = Field(
+        description="The column: its name (CSV header, HDF5 dataset, NPZ array) or its 0-based index.")
+    scale: Finite = Field(default=1.0, description="value = scale * raw + offset; must not be 0.")
+    offset: Finite = Field(default=0.0, description="value = scale * raw + offset.")
 
     @model_validator(mode="after")
     def _scale(self):
@@ -130,22 +143,32 @@ class ChannelCfg(_Strict):
 class TimeCfg(_Strict):
     """The time column: seconds, or ISO 8601 timestamps."""
 
-    column: Union[Annotated[int, Field(ge=0)], Annotated[str, Field(min_length=1)]]
+    column: Union[Annotated[int, Field(ge=0)], Annotated[str, Field(min_length=1)]] = Field(
+        description="The time column (name or 0-based index): seconds, or ISO 8601 timestamps.")
 
 
 class RecordedExperimentCfg(_Strict):
     """One recorded file (CSV, HDF5, NPZ or JSON) and which of its columns are u and y."""
 
-    file: Annotated[str, Field(min_length=1)]
-    key: Optional[Annotated[str, Field(min_length=1)]] = None   # JSON key of the 2-D array; HDF5 group
-    time: Optional[TimeCfg] = None
-    input: ChannelCfg
-    output: ChannelCfg
-    start: Optional[NonNeg] = None
-    stop: Optional[Pos] = None
-    role: Literal["auto", "staircase", "sine", "validation", "other"] = "auto"
-    # stretches to leave out (disturbed samples), [start, stop] seconds from the record's first sample
-    exclude: list[Annotated[list[NonNeg], Field(min_length=2, max_length=2)]] = Field(default_factory=list)
+    file: Annotated[str, Field(min_length=1)] = Field(
+        description="The log: .csv/.tsv/.txt, .h5/.hdf5, .npz or .json; relative to the config file's folder.")
+    key: Optional[Annotated[str, Field(min_length=1)]] = Field(
+        default=None, description="JSON: the key of the 2-D array (default data); HDF5: the group holding the columns.")
+    time: Optional[TimeCfg] = Field(
+        default=None, description="The time column; left out, the rows are taken as dt apart.")
+    input: ChannelCfg = Field(description="The input u: its column, scale and offset.")
+    output: ChannelCfg = Field(description="The measured output y: its column, scale and offset.")
+    start: Optional[NonNeg] = Field(
+        default=None, description="Seconds from the record's first sample before which rows are left out.")
+    stop: Optional[Pos] = Field(
+        default=None, description="Seconds from the record's first sample after which rows are left out.")
+    role: Literal["auto", "staircase", "sine", "validation", "other"] = Field(
+        default="auto", description="What the record holds: auto finds held levels and steady periodic "
+                                    "stretches; staircase only levels; sine only periodic stretches; "
+                                    "validation and other are used as recorded (whole fit, compare).")
+    exclude: list[Annotated[list[NonNeg], Field(min_length=2, max_length=2)]] = Field(
+        default_factory=list, description="Disturbed stretches to leave out, [start, stop] in seconds from the "
+                                          "record's first sample; the record is cut there, never bridged.")
 
     @model_validator(mode="after")
     def _window(self):
@@ -158,15 +181,25 @@ class RecordedExperimentCfg(_Strict):
 
 
 class PlantCfg(_Strict):
-    kind: Literal["hammerstein_wiener", "external", "recorded"]
-    input_nonlinearity: Optional[InputNonlinearityCfg] = None
-    linear: Optional[LinearCfg] = None
-    output_nonlinearity: Optional[OutputNonlinearityCfg] = None
-    noise: NoiseCfg = NoiseCfg()
-    callable: Optional[str] = Field(default=None, pattern=r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
-    timeout: Optional[Pos] = None  # seconds per external call
-    output_resolution: Optional[Pos] = None   # recorded: the quantum of y in output units
-    experiments: Optional[list[RecordedExperimentCfg]] = Field(default=None, min_length=1)
+    kind: Literal["hammerstein_wiener", "external", "recorded"] = Field(
+        description="hammerstein_wiener: simulated (eqs. 3a-c); external: a rig or outside simulator called "
+                    "through callable; recorded: logs a lab already has.")
+    input_nonlinearity: Optional[InputNonlinearityCfg] = Field(
+        default=None, description="F, the Backlash or Backlash-Inverse (hammerstein_wiener only).")
+    linear: Optional[LinearCfg] = Field(default=None, description="G(s) (hammerstein_wiener only).")
+    output_nonlinearity: Optional[OutputNonlinearityCfg] = Field(
+        default=None, description="h (hammerstein_wiener only).")
+    noise: NoiseCfg = Field(default=NoiseCfg(), description="The output noise xi(t) of a simulated plant.")
+    callable: Optional[str] = Field(
+        default=None, pattern=r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$",
+        description="external only: \"package.module:function\", called as function(u, dt) -> y; hwid imports "
+                    "and runs this code.")
+    timeout: Optional[Pos] = Field(default=None, description="external only: seconds to wait for one call.")
+    output_resolution: Optional[Pos] = Field(
+        default=None, description="recorded only: the quantum of y in output units (an encoder's count); "
+                                  "detected from the data when left out.")
+    experiments: Optional[list[RecordedExperimentCfg]] = Field(
+        default=None, min_length=1, description="recorded only: the files, one entry each.")
 
     @model_validator(mode="after")
     def _kind(self):
@@ -193,9 +226,9 @@ class PlantCfg(_Strict):
 
 
 class StaircaseCfg(_Strict):
-    levels_up: list[Finite] = Field(min_length=2)
-    levels_down: list[Finite] = Field(min_length=2)
-    hold: Pos
+    levels_up: list[Finite] = Field(min_length=2, description="U_1 < ... < U_N of the ascending staircase, eq. (6).")
+    levels_down: list[Finite] = Field(min_length=2, description="The descending staircase's levels, eq. (13).")
+    hold: Pos = Field(description="Seconds per level; at least 20 samples.")
 
     @model_validator(mode="after")
     def _monotone(self):
@@ -207,15 +240,17 @@ class StaircaseCfg(_Strict):
 
 
 class SineCfg(_Strict):
-    amplitude: Pos
-    frequencies: list[Pos] = Field(min_length=1)
-    periods: Annotated[int, Field(ge=1)]
-    lead_in_periods: Annotated[int, Field(ge=0)] = 3
+    amplitude: Pos = Field(description="U of eq. (15).")
+    frequencies: list[Pos] = Field(min_length=1, description="omega_i in rad/s; each below the Nyquist frequency "
+                                                             "with at least 8 samples a period.")
+    periods: Annotated[int, Field(ge=1)] = Field(description="N of eq. (23a): periods averaged.")
+    lead_in_periods: Annotated[int, Field(ge=0)] = Field(
+        default=3, description="Periods run first and discarded (G's transient).")
 
 
 class ProtocolsCfg(_Strict):
-    staircase: Optional[StaircaseCfg] = None
-    sine: Optional[SineCfg] = None
+    staircase: Optional[StaircaseCfg] = Field(default=None, description="Stage 1's two staircases (Section 4).")
+    sine: Optional[SineCfg] = Field(default=None, description="Stage 2's sines behind the pre-compensator (Section 5).")
 
     @model_validator(mode="after")
     def _some(self):
@@ -235,22 +270,35 @@ class NonlinearIdCfg(_Strict):
     pool_noise: pool the output noise's long-run variance over all levels (stationary noise).
     """
 
-    method: Literal["nls", "paper"] = "nls"
-    degree: Optional[Annotated[int, Field(ge=1, le=15)]] = None
-    max_degree: Annotated[int, Field(ge=1, le=15)] = 9
-    input_type: Literal["auto", "backlash", "backlash_inverse"] = "auto"
-    alpha: Annotated[float, Field(gt=0.0, lt=0.5)] = 0.01
-    pool_noise: bool = True
+    method: Literal["nls", "paper"] = Field(
+        default="nls", description="nls: joint weighted least squares; paper: the closed form of eqs. (11)-(14).")
+    degree: Optional[Annotated[int, Field(ge=1, le=15)]] = Field(
+        default=None, description="Fix the degree p of h (null: selected from the data by BIC).")
+    max_degree: Annotated[int, Field(ge=1, le=15)] = Field(default=9, description="Largest degree of h tried.")
+    input_type: Literal["auto", "backlash", "backlash_inverse"] = Field(
+        default="auto", description="auto decides Backlash or Backlash-Inverse from the data (Remark 1.4); "
+                                    "the others skip the decision.")
+    alpha: Annotated[float, Field(gt=0.0, lt=0.5)] = Field(
+        default=0.01, description="Family-wise level of the tests that find the horizontal paths j_a, j_d.")
+    pool_noise: bool = Field(
+        default=True, description="Pool the noise's long-run variance over all levels (stationary noise).")
 
 
 class LinearIdCfg(_Strict):
-    method: Literal["nls", "paper"] = "nls"
-    harmonic: Optional[Annotated[int, Field(ge=1)]] = None
-    precompensator: Literal["auto", "backlash", "border_map"] = "auto"
-    max_order: Annotated[int, Field(ge=1, le=8)] = 4
-    fit_delay: bool = False
-    hold_correction: bool = True     # divide out the zero-order hold of the sampled input (dt/2 delay)
-    noise_model: Literal["auto", "white", "periodic"] = "auto"   # harmonic standard errors (stage 2)
+    method: Literal["nls", "paper"] = Field(
+        default="nls", description="nls: maximum likelihood on all harmonics (eq. 20); paper: eq. (37) on one harmonic.")
+    harmonic: Optional[Annotated[int, Field(ge=1)]] = Field(
+        default=None, description="The harmonic method paper uses (null: the highest significant one).")
+    precompensator: Literal["auto", "backlash", "border_map"] = Field(
+        default="auto", description="Fig. 8's pre-compensator; auto: B_inv for a Backlash, the border map for a "
+                                    "Backlash-Inverse.")
+    max_order: Annotated[int, Field(ge=1, le=8)] = Field(default=4, description="Largest order of the parametric G(s).")
+    fit_delay: bool = Field(default=False, description="Also fit a pure delay in the parametric G(s).")
+    hold_correction: bool = Field(
+        default=True, description="Divide out the zero-order hold of the sampled input (a dt/2 delay).")
+    noise_model: Literal["auto", "white", "periodic"] = Field(
+        default="auto", description="Harmonic standard errors from the residual variance (white) or the spread "
+                                    "over periods (periodic, coloured noise); auto tests which.")
 
 
 class WholeIdCfg(_Strict):
@@ -262,28 +310,35 @@ class WholeIdCfg(_Strict):
       backlash_inverse.
     """
 
-    enabled: bool = False
-    max_degree: Annotated[int, Field(ge=1, le=9)] = 5
-    max_order: Annotated[int, Field(ge=1, le=3)] = 3
-    delay: bool = False
-    input_type: Literal["auto", "backlash", "backlash_inverse"] = "auto"
+    enabled: bool = Field(default=False, description="hwid run also fits the whole model by output error (whole.h5).")
+    max_degree: Annotated[int, Field(ge=1, le=9)] = Field(default=5, description="Highest degree of h_bar tried.")
+    max_order: Annotated[int, Field(ge=1, le=3)] = Field(
+        default=3, description="Highest order of G tried (real poles, pole pairs, with and without a zero); one "
+                                "more pole or pair may replace a right-half-plane zero or a delay where it fits better.")
+    delay: bool = Field(default=False, description="Also fit a pure delay of G.")
+    input_type: Literal["auto", "backlash", "backlash_inverse"] = Field(
+        default="auto", description="Type of F tried; auto: both, the criterion decides (after the stages: theirs).")
 
 
 class IdentificationCfg(_Strict):
-    nonlinear: NonlinearIdCfg = NonlinearIdCfg()
-    linear: LinearIdCfg = LinearIdCfg()
-    whole: WholeIdCfg = WholeIdCfg()
+    nonlinear: NonlinearIdCfg = Field(default=NonlinearIdCfg(), description="Stage 1 (Section 4).")
+    linear: LinearIdCfg = Field(default=LinearIdCfg(), description="Stage 2 (Section 5).")
+    whole: WholeIdCfg = Field(default=WholeIdCfg(), description="The whole-model fit from any input.")
 
 
 class Config(_Strict):
-    name: Annotated[str, Field(min_length=1, max_length=100, pattern=r"^[A-Za-z0-9_.+-]+$")]
-    seed: Annotated[int, Field(ge=0, lt=2**63)] = 0   # stored as an int64 HDF5 attribute
-    sampling: Sampling
-    plant: PlantCfg
+    name: Annotated[str, Field(min_length=1, max_length=100, pattern=r"^[A-Za-z0-9_.+-]+$")] = Field(
+        description="The run's name; paper-section6 makes reports show the paper's own values beside.")
+    seed: Annotated[int, Field(ge=0, lt=2**63)] = Field(
+        default=0, description="Root of numpy's SeedSequence: every experiment's noise comes from it.")
+    sampling: Sampling = Field(description="The time grid.")
+    plant: PlantCfg = Field(description="What is identified: a simulated plant, an external rig, or recorded logs.")
     # a recorded plant's records are its experiments: its config may leave protocols out (the
     # default, not validated, holds neither); other plants must give them (checked in parse)
-    protocols: ProtocolsCfg = Field(default_factory=lambda: ProtocolsCfg.model_construct(staircase=None, sine=None))
-    identification: IdentificationCfg = IdentificationCfg()
+    protocols: ProtocolsCfg = Field(
+        default_factory=lambda: ProtocolsCfg.model_construct(staircase=None, sine=None),
+        description="The experiments run on the plant; required but for a recorded plant.")
+    identification: IdentificationCfg = Field(default=IdentificationCfg(), description="The estimators' settings.")
 
     # set by load(): the source text and its hash (provenance); not config keys
     source_text: str = Field(default="", exclude=True, repr=False)

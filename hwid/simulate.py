@@ -51,7 +51,7 @@ def run_protocols(cfg, plant=None, progress: bool | None = None):
 
 
 def simulate(cfg, out_dir: str | Path, progress: bool | None = None) -> Path:
-    """Write ``OUT/simulation.h5`` (layout in the README): the protocols run on the plant, or a
+    """Write ``OUT/simulation.h5`` (layout in docs/guide/outputs.md): the protocols run on the plant, or a
     recorded plant's records read, cleaned and resampled (:mod:`hwid.recorded`)."""
     out = Path(out_dir) / "simulation.h5"
     if cfg.plant.kind == "recorded":
