@@ -42,14 +42,17 @@ def check(config: Path = typer.Argument(..., help="Config YAML to validate.")):
     """Validate a config and exit (0 if it is usable, 2 with one line if not)."""
     from hwid.config import load as load_config
     cfg = load_config(config)
-    detail = ""
+    detail, splits = "", []
     if cfg.plant.kind == "external":
         from hwid.plant import load_external
         load_external(cfg)   # imports the named callable (only that) and checks its signature
     elif cfg.plant.kind == "recorded":
-        from hwid.recorded import describe, load_records
-        detail = "; " + describe(load_records(cfg))      # reads every file, writes nothing
+        from hwid.recorded import describe, load_records, split_lines
+        records = load_records(cfg)                        # reads every file, writes nothing
+        detail, splits = "; " + describe(records), split_lines(records)
     typer.echo(f"{config}: OK ({cfg.name}, plant {cfg.plant.kind}, config sha256 {cfg.sha256[:12]}){detail}")
+    for line in splits:
+        typer.echo(line)
 
 
 @app.command()

@@ -52,6 +52,7 @@ class CompareResult:
     whiteness_p: float
     input_correlation_p: float
     model: dict
+    figures: tuple[str, ...] = ()      # the figures written, relative to the output folder
 
     @property
     def rms_over_floor(self) -> float | None:
@@ -62,7 +63,7 @@ class CompareResult:
                 "rms_over_floor": self.rms_over_floor,
                 "experiments": [asdict(e) for e in self.experiments],
                 "residual": {"whiteness_p": self.whiteness_p, "input_correlation_p": self.input_correlation_p},
-                "model": self.model}
+                "model": self.model, "figures": list(self.figures)}
 
 
 def fit_percent(y, y_hat) -> float:
@@ -183,6 +184,8 @@ def compare(model_spec, cfg, out_dir, json_path=None, echo=print) -> CompareResu
     model, info = load_model(model_spec, echo=echo)
     records, floor = experiments_of(cfg, out)
     result, sims = compare_records(model, records, floor, {k: v for k, v in info.items() if k != "records"})
+    from hwid.report.compare_figures import with_figures
+    result = with_figures(result, out, model, records, sims)       # OUT/figures/compare_*.png
     write_compare(out / "compare.h5", cfg, result.to_dict(), records, sims)
     write_json(Path(json_path) if json_path else out / "compare.json", result.to_dict())
     for e in result.experiments:

@@ -153,7 +153,15 @@ class RecordedExperimentCfg(_Strict):
     file: Annotated[str, Field(min_length=1)] = Field(
         description="The log: .csv/.tsv/.txt, .h5/.hdf5, .npz or .json; relative to the config file's folder.")
     key: Optional[Annotated[str, Field(min_length=1)]] = Field(
-        default=None, description="JSON: the key of the 2-D array (default data); HDF5: the group holding the columns.")
+        default=None, description="JSON: the key of the table (default data, else the whole document): a 2-D array "
+                                  "(columns by index), a mapping of named columns or a list of rows by name; "
+                                  "HDF5: the group holding the columns.")
+    decimal: Literal[".", ","] = Field(
+        default=".", description="CSV: the decimal mark of the numbers, '.' or ',' (a log written with comma "
+                                 "decimals, 1,25).")
+    separator: Optional[Literal["comma", "semicolon", "tab", "pipe", "space"]] = Field(
+        default=None, description="CSV: the column separator by name; left out, it is sniffed from the file's first "
+                                  "lines (never the comma when decimal is ',').")
     time: Optional[TimeCfg] = Field(
         default=None, description="The time column; left out, the rows are taken as dt apart.")
     input: ChannelCfg = Field(description="The input u: its column, scale and offset.")
@@ -169,6 +177,15 @@ class RecordedExperimentCfg(_Strict):
     exclude: list[Annotated[list[NonNeg], Field(min_length=2, max_length=2)]] = Field(
         default_factory=list, description="Disturbed stretches to leave out, [start, stop] in seconds from the "
                                           "record's first sample; the record is cut there, never bridged.")
+
+    @model_validator(mode="after")
+    def _csv_options(self):
+        csv_like = Path(self.file).suffix.lower() in (".csv", ".tsv", ".txt")
+        if not csv_like and (self.decimal != "." or self.separator is not None):
+            raise ValueError("decimal and separator are for CSV files (.csv, .tsv, .txt) only")
+        if self.separator == "comma" and self.decimal == ",":
+            raise ValueError("separator and decimal must differ (both are ',')")
+        return self
 
     @model_validator(mode="after")
     def _window(self):

@@ -1,15 +1,17 @@
 """Recorded logs in: a user's files read, cleaned and put on the ``dt`` grid as hwid's ``Record``s.
 
 One reader per format behind :func:`read_columns` (nothing downstream knows which format a record
-came from): CSV by pandas (the delimiter sniffed, a header row, columns by name or 0-based index,
-ISO 8601 timestamps), HDF5 (dataset paths, under ``key`` when given), NPZ (array names), JSON (a
-2-D array under ``key``, default ``data``; columns by index).
+came from): CSV by pandas (the delimiter sniffed or given, ``.`` or ``,`` as the decimal mark, a
+header row, columns by name or 0-based index, ISO 8601 timestamps), HDF5 (dataset paths, under
+``key`` when given), NPZ (array names), JSON (under ``key``, default ``data``, else the whole
+document: a 2-D array with columns by index, a mapping of named columns, or a list of rows by name).
 
 What is done to the data, and recorded in each ``Record``'s attributes (so in ``simulation.h5``,
 and listed by ``hwid report``):
 
 * leading and trailing rows without both signals are dropped;
-* a gap in time longer than ``3 dt`` splits the record (never bridged);
+* a gap in time longer than ``3 dt`` splits the record (never bridged); each split's time, length
+  and cause are kept (``split_points``) and said by ``hwid check`` (:func:`split_lines`);
 * interior NaN runs of at most 2 samples are interpolated (counted); longer ones split the record;
 * uneven timestamps go onto the ``dt`` grid: the input by zero-order hold (a rig holds its
   command, from the grid point nearest its timestamp), the output by linear interpolation; the
@@ -39,6 +41,8 @@ MAX_NAN_RUN = 2
 MIN_SAMPLES = 3
 #: a level: the input constant for at least this many samples
 MIN_LEVEL_SAMPLES = 3
+#: CSV column separators by the name the config gives them (``separator``)
+SEPARATORS = {"comma": ",", "semicolon": ";", "tab": "\t", "pipe": "|", "space": " "}
 
 
 class RecordError(HwidError):
@@ -47,20 +51,24 @@ class RecordError(HwidError):
 
 # ----------------------------------------------------------------------------------- readers
 
-def read_columns(path: Path, columns: list, key: str | None = None) -> tuple[list[np.ndarray], int]:
+def read_columns(path: Path, columns: list, key: str | None = None, decimal: str = ".",
+                 separator: str | None = None) -> tuple[list[np.ndarray], int]:
     """The ``columns`` (names or 0-based indices) of the file at ``path`` as arrays (float, or
-    ``datetime64`` for an ISO time column), and the number of data rows."""
+    ``datetime64`` for an ISO time column), and the number of data rows.
+
+    ``decimal`` (``"."`` or ``","``) and ``separator`` (a name of :data:`SEPARATORS`; None: sniffed)
+    apply to CSV files."""
     if not path.exists():
         raise RecordError(f"{path}: no such file")
     suffix = path.suffix.lower()
     if suffix in (".csv", ".tsv", ".txt"):
-        return _read_csv(path, columns)
+        return _read_csv(path, columns, decimal, separator)
     if suffix in (".h5", ".hdf5"):
         return _read_hdf5(path, columns, key)
     if suffix == ".npz":
         return _read_npz(path, columns)
     if suffix == ".json":
-        return _read_json(path, columns, key or "data")
+        return _read_json(path, columns, key)
     raise RecordError(f"{path}: cannot tell the format from the suffix '{suffix}' "
                       "(use .csv, .tsv, .txt, .h5, .hdf5, .npz or .json)")
 
@@ -79,31 +87,38 @@ def _pick(path: Path, names: list[str], column):
     return column
 
 
-def _read_csv(path: Path, columns: list):
+def _read_csv(path: Path, columns: list, decimal: str = ".", separator: str | None = None):
     import pandas as pd
     with open(path, newline="", encoding="utf-8", errors="replace") as fh:
         head = fh.read(8192)
     if not head.strip():
         raise RecordError(f"{path}: the file is empty")
-    try:
-        delimiter = csv.Sniffer().sniff(head, delimiters=",;\t| ").delimiter
-    except csv.Error:
-        delimiter = ","
+    delimiter = SEPARATORS[separator] if separator else _sniff(head, decimal)
     try:
         names = list(pd.read_csv(path, sep=delimiter, nrows=0).columns)
         wanted = list(dict.fromkeys(_pick(path, names, c) for c in columns))
         # numbers by the C parser's own conversion (the fast path); a column it cannot convert
         # comes as text, read again by _csv_column (timestamps, or a bad cell named by its row)
-        frame = pd.read_csv(path, sep=delimiter, usecols=wanted, engine="c", keep_default_na=True)
+        frame = pd.read_csv(path, sep=delimiter, usecols=wanted, engine="c", keep_default_na=True,
+                            decimal=decimal)
     except RecordError:
         raise
     except (ValueError, pd.errors.ParserError, UnicodeDecodeError) as err:
         raise RecordError(f"{path}: not a readable CSV file ({type(err).__name__}: {' '.join(str(err).split())[:120]})") from None
-    out = [_csv_column(path, frame, _pick(path, names, c)) for c in columns]
+    out = [_csv_column(path, frame, _pick(path, names, c), decimal) for c in columns]
     return out, len(frame)
 
 
-def _csv_column(path: Path, frame, name) -> np.ndarray:
+def _sniff(head: str, decimal: str) -> str:
+    """The delimiter of a CSV file's first lines; with comma decimals, never the comma."""
+    candidates = ";\t| " if decimal == "," else ",;\t| "
+    try:
+        return csv.Sniffer().sniff(head, delimiters=candidates).delimiter
+    except csv.Error:
+        return ";" if decimal == "," else ","
+
+
+def _csv_column(path: Path, frame, name, decimal: str = ".") -> np.ndarray:
     """Numbers, or timestamps for a column of ISO 8601 text; a cell that is neither is an error
     naming its row and column (empty cells become NaN)."""
     import pandas as pd
@@ -111,6 +126,8 @@ def _csv_column(path: Path, frame, name) -> np.ndarray:
     if pd.api.types.is_numeric_dtype(text.dtype):
         return text.to_numpy(float)
     present = text.notna()
+    if decimal != ".":      # a column the C parser left as text: its numbers with the '.' mark
+        text = text.where(~present, text.astype(str).str.replace(decimal, ".", regex=False))
     first = text[present].iloc[0] if present.any() else ""
     try:
         float(first)
@@ -152,18 +169,82 @@ def _read_npz(path: Path, columns: list):
     return out, max(a.size for a in out)
 
 
-def _read_json(path: Path, columns: list, key: str):
+def _read_json(path: Path, columns: list, key: str | None):
+    """A 2-D array (columns by index), a mapping ``{name: [values]}`` or a list of rows
+    ``[{name: value}]`` (columns by name, or by index in the order of the names), under ``key``;
+    without ``key``, under ``data`` or else the whole document."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        table = np.asarray(data[key], float)
-    except (OSError, ValueError, KeyError, TypeError) as err:
-        raise RecordError(f"{path}: no 2-D numeric array under key '{key}' ({type(err).__name__})") from None
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as err:
+        raise RecordError(f"{path}: not a readable JSON file ({type(err).__name__})") from None
+    where = f"key '{key or 'data'}'"
+    if key is None and not (isinstance(document, dict) and "data" in document):
+        data, where = document, "the top level"
+    elif isinstance(document, dict) and (key or "data") in document:
+        data = document[key or "data"]
+    else:
+        raise RecordError(f"{path}: no key '{key or 'data'}' in the file")
+    if isinstance(data, dict) or (isinstance(data, list) and data and all(isinstance(r, dict) for r in data)):
+        return _json_named_columns(path, data, columns, where)
+    try:
+        table = np.asarray(data, float)
+    except (ValueError, TypeError) as err:
+        raise RecordError(f"{path}: no numeric table under {where} ({type(err).__name__})") from None
     if table.ndim != 2:
-        raise RecordError(f"{path}: the array under key '{key}' is not 2-D (shape {table.shape})")
+        raise RecordError(f"{path}: the array under {where} is not 2-D (shape {table.shape})")
     for c in columns:
         if not isinstance(c, int) or c >= table.shape[1]:
-            raise RecordError(f"{path}: column {c!r}: JSON columns are 0-based indices below {table.shape[1]}")
+            raise RecordError(f"{path}: column {c!r}: JSON columns are 0-based indices below {table.shape[1]} "
+                              f"in the 2-D array under {where} (names need a mapping of columns or a list of rows)")
     return [table[:, c] for c in columns], table.shape[0]
+
+
+def _json_named_columns(path: Path, data, columns: list, where: str):
+    """Columns by name from ``{name: [values]}`` or ``[{name: value}]`` (a row without the name,
+    or with null, gives NaN); ``datetime64`` for a column of ISO 8601 text."""
+    if isinstance(data, dict):
+        names = list(data)
+        get = lambda name: data[name]                                        # noqa: E731
+    else:
+        names = list(dict.fromkeys(n for row in data for n in row))
+        get = lambda name: [row.get(name) for row in data]                   # noqa: E731
+    out = []
+    for c in columns:
+        name = _pick(path, names, c)
+        values = get(name)
+        if not isinstance(values, list):
+            raise RecordError(f"{path}: column '{name}' under {where} is not a list of values")
+        out.append(_json_values(path, name, values))
+    if len({a.size for a in out}) > 1:
+        raise RecordError(f"{path}: the columns under {where} differ in length "
+                          f"({', '.join(str(a.size) for a in out)})")
+    return out, out[0].size
+
+
+def _json_values(path: Path, name, values: list) -> np.ndarray:
+    """A JSON column as floats (null -> NaN), or as timestamps when it holds ISO 8601 text."""
+    if any(isinstance(v, str) for v in values):
+        try:                                       # numbers written as text
+            return np.array([np.nan if v is None else float(v) for v in values], dtype=float)
+        except (ValueError, TypeError):
+            return np.array([np.datetime64("NaT") if v is None else _iso(path, name, v) for v in values],
+                            dtype="datetime64[ns]")
+    try:
+        return np.array([np.nan if v is None else v for v in values], dtype=float)
+    except (ValueError, TypeError):
+        row = next(i for i, v in enumerate(values) if not isinstance(v, (int, float)) and v is not None)
+        raise RecordError(f"{path}: row {row + 1}, column '{name}': {values[row]!r} is not a number") from None
+
+
+def _iso(path: Path, name, value) -> np.datetime64:
+    import pandas as pd
+    try:
+        stamp = pd.Timestamp(value)
+    except (ValueError, TypeError):
+        raise RecordError(f"{path}: column '{name}': {value!r} is neither a number nor an ISO 8601 time") from None
+    if stamp.tzinfo is not None:
+        stamp = stamp.tz_convert("UTC").tz_localize(None)
+    return np.datetime64(stamp.to_datetime64(), "ns")
 
 
 # -------------------------------------------------------------------------------- the records
@@ -194,7 +275,7 @@ def load_experiment(exp, index: int, base: Path, dt: float, resolution: float | 
     path = (base / exp.file) if not Path(exp.file).is_absolute() else Path(exp.file)
     where = f"plant.experiments[{index}] ({exp.file})"
     columns = [exp.input.column, exp.output.column] + ([exp.time.column] if exp.time is not None else [])
-    arrays, n_rows = read_columns(path, columns, exp.key)
+    arrays, n_rows = read_columns(path, columns, exp.key, exp.decimal, exp.separator)
     u_raw, y_raw = arrays[0], arrays[1]
     u = exp.input.scale * u_raw + exp.input.offset
     y = exp.output.scale * y_raw + exp.output.offset
@@ -227,7 +308,8 @@ def load_experiment(exp, index: int, base: Path, dt: float, resolution: float | 
                  "rows_excluded": int(out.sum())}
     if t.size < MIN_SAMPLES:
         raise RecordError(f"{where}: fewer than {MIN_SAMPLES} samples are left outside the excluded stretches")
-    pieces = _split(t, u, y, dt, decisions, forced)
+    split_points: list[dict] = []
+    pieces = _split(t, u, y, dt, decisions, forced, split_points)
     if not pieces:
         raise RecordError(f"{where}: no stretch of at least {MIN_SAMPLES} samples without a gap "
                           f"longer than {GAP_DT:g} dt or a NaN run longer than {MAX_NAN_RUN}")
@@ -245,7 +327,7 @@ def load_experiment(exp, index: int, base: Path, dt: float, resolution: float | 
                   "jitter_max_s": float(np.max(np.abs(step - dt))) if step.size else 0.0,
                   "output_resolution": quantum if quantum is not None else 0.0,
                   "output_resolution_source": quantum_source, "role": exp.role,
-                  "splits": len(pieces) - 1, **decisions}
+                  "splits": len(pieces) - 1, "split_points": json.dumps(split_points), **decisions}
     stem = Path(exp.file).stem
     records = []
     for k, (tk, uk, yk) in enumerate(pieces):
@@ -300,17 +382,26 @@ def _resolution(y_raw: np.ndarray, scale: float, given: float | None) -> tuple[f
     return None, "none"
 
 
-def _split(t, u, y, dt: float, decisions: dict, forced=()) -> list[tuple]:
+def _split(t, u, y, dt: float, decisions: dict, forced=(), points: list | None = None) -> list[tuple]:
     """Pieces without a gap longer than :data:`GAP_DT` ``dt`` or a NaN run longer than
     :data:`MAX_NAN_RUN`; shorter NaN runs interpolated (counted in ``decisions``); also cut before
-    the samples ``forced`` (where an excluded stretch was)."""
-    cuts = np.union1d(np.flatnonzero(np.diff(t) > GAP_DT * dt) + 1, np.asarray(forced, int))
+    the samples ``forced`` (where an excluded stretch was). Each cut is appended to ``points`` as
+    ``{"time_s", "gap_s", "cause"}``: the last sample's time before it (s from the record's first
+    sample), the time to the next sample after it, and ``gap``, ``excluded`` or ``missing``."""
+    forced = np.asarray(forced, int)
+    cuts = np.union1d(np.flatnonzero(np.diff(t) > GAP_DT * dt) + 1, forced)
     cuts = cuts[(cuts > 0) & (cuts < t.size)]
+    points = [] if points is None else points
+    for c in cuts.tolist():
+        points.append({"time_s": float(t[c - 1]), "gap_s": float(t[c] - t[c - 1]),
+                       "cause": "excluded" if c in forced else "gap"})
     pieces = []
     for tk, uk, yk in zip(np.split(t, cuts), np.split(u, cuts), np.split(y, cuts)):
         missing = ~(np.isfinite(uk) & np.isfinite(yk))
         runs = _runs(missing)
         long_runs = [(a, b) for a, b in runs if b - a > MAX_NAN_RUN]
+        points += [{"time_s": float(tk[a - 1]), "gap_s": float(tk[b] - tk[a - 1]), "cause": "missing"}
+                   for a, b in long_runs if 0 < a and b < tk.size]
         for a, b in runs:
             if b - a <= MAX_NAN_RUN:
                 decisions["nan_interpolated"] += b - a
@@ -455,6 +546,22 @@ def periodic_segments(u: np.ndarray, dt: float) -> list[dict]:
         seg = periodic_segment(u, dt)
         out = [seg] if seg is not None else []
     return out
+
+
+def split_lines(records: list[Record]) -> list[str]:
+    """One line per place a file's record was cut (``hwid check``): the file, the time of the last
+    sample before the cut (s from the record's first sample), how long until the next sample, and why."""
+    why = {"gap": f"a gap in the timestamps longer than {GAP_DT:g} dt",
+           "excluded": "an excluded stretch (exclude)",
+           "missing": f"a run of missing values longer than {MAX_NAN_RUN} samples"}
+    lines = []
+    for r in records:
+        if r.attrs.get("piece", 0) != 0:
+            continue
+        for point in sorted(json.loads(r.attrs.get("split_points", "[]")), key=lambda p: p["time_s"]):
+            lines.append(f"{r.attrs.get('source_file', r.name)}: split at t = {point['time_s']:.6g} s, "
+                         f"{point['gap_s']:.6g} s to the next sample: {why[point['cause']]}")
+    return lines
 
 
 def describe(records: list[Record]) -> str:

@@ -79,7 +79,8 @@ def test_cli_compare_json_keys(tmp_path):
     assert set(back["y_model"]) == {e["name"] for e in d["experiments"]}
     from hwid.report.html import write_report
     page = write_report(tmp_path / "out").read_text()
-    assert "id='compare'" in page and "fig-compare_overlay" in page and "fig-compare_residual" in page
+    assert "id='compare'" in page and "fig-compare_residual_tests" in page
+    assert all(f"fig-compare_{e['name']}" in page for e in d["experiments"])
 
 
 def test_cli_compare_bad_model_is_one_line(tmp_path):

@@ -7,6 +7,8 @@ self-contained HTML page from what the stages wrote into a run directory.
   periods, harmonics).
 * :mod:`hwid.report.figures`: one plotting function per figure, on plain data, ``ax=None``, returns
   the figure.
+* :mod:`hwid.report.compare_figures`: ``hwid compare``'s figures (the free run per experiment, the
+  residual tests as ``resid`` draws them), written by ``hwid compare`` into ``OUT/figures/``.
 * :mod:`hwid.report.tables`: the tables as HTML, with the paper's values from :mod:`hwid.paper`.
 * :mod:`hwid.report.html`: the page: which figures, their captions, ``DIR/report/report.html``
   (:func:`~hwid.report.html.write_report`).

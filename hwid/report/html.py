@@ -22,7 +22,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from hwid import HwidError
-from hwid.report import figures, tables
+from hwid.report import compare_figures, figures, tables
 from hwid.report.rundir import RunData, load_run
 from hwid.report.views import ReportViews, h_covariance, parametric_block, points_on_w, prepare
 
@@ -32,8 +32,9 @@ class FigureItem:
     name: str
     section: str
     caption: str
-    figure: Figure
+    figure: Figure | None
     group: str = ""          # figures of one group share a row of the page
+    png: bytes | None = None  # a figure a command already drew (PNG), shown as it is
 
 
 # ================================================================================ the figures
@@ -165,17 +166,47 @@ def _diagnosis_figures(run: RunData) -> list[FigureItem]:
                        figures.plot_ranking(run.diagnosis), "diagnosis_ranking")]
 
 
+COMPARE_EXPERIMENT_CAPTION = ("{name}: the measured output and the model's free run from its estimated "
+                              "initial state (top), and the residual y - model beneath (dashed: +- the noise "
+                              "floor where it is known).")
+COMPARE_TESTS_CAPTION = ("Residual tests (resid), pooled over the experiments: the residual's autocorrelation "
+                         "and its cross-correlation with the input u(t-k); the grey band holds 99 % of the "
+                         "values of a white residual independent of the input (+-2.58/sqrt(N); for the "
+                         "cross-correlation +-2.58 sqrt(P/N), P = sum_k r_e(k) r_u(k)). Bars outside it: "
+                         "structure the model misses. The lag axis says whether the residual was decimated.")
+
+
 def _compare_figures(run: RunData) -> list[FigureItem]:
-    """``hwid compare``: measured and simulated outputs overlaid, and the residual's correlations."""
+    """``hwid compare``: the figures it wrote into ``DIR/figures/`` (listed under ``figures`` in its
+    summary), shown as they are; for a comparison written without them, the same figures drawn
+    from ``compare.h5`` (residual tests not decimated: the model is not stored there)."""
     if run.compare is None:
         return []
-    return [FigureItem("compare_overlay", "compare",
-                       "Measured output and the model's free run from its estimated initial state (top), "
-                       "and their difference (bottom).", figures.plot_compare(run.compare), "compare_overlay"),
-            FigureItem("compare_residual", "compare",
-                       "Residual tests (resid): autocorrelation, and correlation with past inputs; the grey "
-                       "band holds 99 % of uncorrelated data.", figures.plot_residual_correlation(run.compare),
-                       "compare_residual")]
+    folder = run.directory / compare_figures.FIGURES_DIR
+    listed = [run.directory / f for f in run.compare["summary"].get("figures", [])]
+    if listed and all(f.parent == folder and f.suffix == ".png" and f.is_file() for f in listed):
+        return [FigureItem(f.stem, "compare", _compare_caption(f.stem), None, f"compare_{k // 2}", f.read_bytes())
+                for k, f in enumerate(listed)]
+    summary, sims = run.compare["summary"], run.compare["y_model"]
+    fits = {e["name"]: e["fit_percent"] for e in summary["experiments"]}
+    records = {name: run.compare["experiments"][name] for name in fits if name in run.compare["experiments"]}
+    items = [FigureItem(f"compare_{compare_figures.safe_name(name)}", "compare",
+                        COMPARE_EXPERIMENT_CAPTION.format(name=name),
+                        compare_figures.plot_experiment(name, rec.t, rec.y, sims[name], fits.get(name),
+                                                        summary.get("noise_floor")), f"compare_{k // 2}")
+             for k, (name, rec) in enumerate(records.items())]
+    dt = float(next(iter(records.values())).dt) if records else 1.0
+    corr = compare_figures.residual_correlation([rec.y - sims[n] for n, rec in records.items()],
+                                                [rec.u for rec in records.values()], dt=dt)
+    items.append(FigureItem("compare_residual_tests", "compare", COMPARE_TESTS_CAPTION,
+                            compare_figures.plot_residual_tests(corr), f"compare_{len(items) // 2}"))
+    return items
+
+
+def _compare_caption(stem: str) -> str:
+    if stem == "compare_residual_tests":
+        return COMPARE_TESTS_CAPTION
+    return COMPARE_EXPERIMENT_CAPTION.format(name=stem.removeprefix("compare_"))
 
 
 # ================================================================================ the page
@@ -292,7 +323,13 @@ def write_report(directory: str | Path, out_dir: str | Path | None = None) -> Pa
         raise HwidError(f"{out}: cannot create the report directory ({err.strerror or type(err).__name__})") from None
     views = prepare(run)
     items = build_figures(run, views)
-    pngs = {item.name: _save(item.figure, out / item.name) for item in items}
+    pngs = {}
+    for item in items:
+        if item.png is not None:
+            _atomic_bytes(out / f"{item.name}.png", item.png)
+            pngs[item.name] = item.png
+        else:
+            pngs[item.name] = _save(item.figure, out / item.name)
     manifest = [{"name": i.name, "section": i.section, "caption": i.caption} for i in items]
     _atomic_bytes(out / "figures.json", (json.dumps(manifest, indent=1) + "\n").encode())
     path = out / "report.html"
