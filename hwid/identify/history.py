@@ -52,12 +52,10 @@ SETTLE_TAUS = 5.0
 def settled_levels(records, resolution: float | None = None) -> tuple[list[Level], list[str]]:
     """The settled levels of every record (attribute ``segments`` from :mod:`hwid.recorded`, or the
     piecewise-constant stretches of ``u``), with their standard errors; and the warnings."""
-    from hwid.recorded import level_segments
     warns: list[str] = []
     per_record = []
     for r in records:
-        segs = json.loads(r.attrs["segments"]) if "segments" in r.attrs else level_segments(np.asarray(r.u, float))
-        segs = [s for s in segs if s["kind"] == "level"]
+        segs = record_levels(r)
         q = resolution if resolution is not None else (float(r.attrs.get("output_resolution", 0.0)) or None)
         per_record.append((r, segs, q))
     segments = [np.asarray(r.y[s["start"]:s["stop"]], float) for r, segs, _ in per_record for s in segs]
@@ -73,8 +71,13 @@ def settled_levels(records, resolution: float | None = None) -> tuple[list[Level
         warns += list(st.warnings)
     levels: list[Level] = []
     for r, segs, q in per_record:
-        k = 0
+        k, done = 0, 0
         for s in segs:
+            # the input's path since the last level: its turning points move F's state too
+            for i in passage(np.asarray(r.u, float), done, s["start"]):
+                levels.append(Level(r.name, k, float(r.u[i]), float(r.y[i]), float(max(sigma, 1e-300)), 0, False))
+                k += 1
+            done = s["stop"]
             y = np.asarray(r.y[s["start"]:s["stop"]], float)
             if y.size == 0:     # a level cut to nothing (a fit block that ends where it starts)
                 continue
@@ -82,9 +85,10 @@ def settled_levels(records, resolution: float | None = None) -> tuple[list[Level
                    or _short_level(y, q, sigma))
             if got is None:
                 # not scored, but kept in the sequence: the gear still passed through it
-                warns.append(f"{r.name}: the level at u = {s['value']:.6g} (samples {s['start']}-{s['stop']}) is "
-                             f"still moving at its end; holds of at least {MIN_STEADY} samples are needed to find "
-                             "its steady state: not scored (the input's passage through it is kept)")
+                warns.append(f"{r.name}: the level at u = {s['value']:.6g} (t = {s['start'] * r.dt:.6g}-"
+                             f"{s['stop'] * r.dt:.6g} s, samples {s['start']}-{s['stop']}) is still moving at its "
+                             f"end; holds of at least {MIN_STEADY} samples after the settle time of {cut} samples "
+                             "are needed to find its steady state: not scored (the input's passage through it is kept)")
                 levels.append(Level(r.name, k, float(s["value"]), float(y[-1]), float(max(sigma, 1e-300)), 0, False))
                 k += 1
                 continue
@@ -94,6 +98,47 @@ def settled_levels(records, resolution: float | None = None) -> tuple[list[Level
             levels.append(Level(r.name, k, float(s["value"]), mean, se, n))
             k += 1
     return levels, warns
+
+
+def passage(u: np.ndarray, start: int, stop: int, most: int = 64) -> list[int]:
+    """The samples of ``u[start:stop]`` (the input between two held levels: a stretch too short to
+    be a level, a sine, a ramp) at which it turns, and its last one: F's steady recursion over them
+    ends in the state the whole path leaves (between turning points the path is monotone, and a
+    monotone path leaves a Backlash or a Backlash-Inverse where a step to its end would). Beyond
+    ``most`` turning points only those outside the range of all later ones are kept (the play's
+    wiping-out property: a later wider excursion erases an earlier narrower one)."""
+    x = np.asarray(u[start:stop], float)
+    if x.size == 0:
+        return []
+    keep = np.flatnonzero(np.r_[np.diff(x) != 0, True])       # the last sample of each constant run
+    v = x[keep]
+    d = np.sign(np.diff(v))
+    turn = np.r_[np.flatnonzero(d[1:] != d[:-1]) + 1, v.size - 1] if v.size > 1 else np.array([0])
+    idx = keep[turn]
+    if idx.size > most:
+        lo, hi, out = np.inf, -np.inf, []
+        for i in idx[::-1]:
+            if x[i] < lo or x[i] > hi:
+                out.append(i)
+                lo, hi = min(lo, x[i]), max(hi, x[i])
+        idx = np.array(out[::-1])
+    return [int(start + i) for i in idx]
+
+
+def record_levels(record) -> list[dict]:
+    """The held levels of ``record``: its ``segments`` attribute (:mod:`hwid.recorded`) where that
+    describes this record's own input -- every level inside it and the input constant at the level's
+    value there -- else the piecewise-constant stretches of its ``u`` found again. A record cut out of
+    a longer one (a fit block, an excluded window) keeps its parent's attributes; their sample
+    numbers then point past its end or at other samples."""
+    from hwid.recorded import level_segments
+    u = np.asarray(record.u, float)
+    if "segments" in record.attrs:
+        segs = [s for s in json.loads(record.attrs["segments"]) if s["kind"] == "level"]
+        if all(0 <= s["start"] < s["stop"] <= u.size and np.all(u[s["start"]:s["stop"]] == s["value"])
+               for s in segs):
+            return segs
+    return level_segments(u)
 
 
 def settle_constant(segments, skip: int = 1) -> float:
