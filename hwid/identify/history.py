@@ -38,6 +38,7 @@ import numpy as np
 from scipy import optimize, special
 
 from hwid import HwidError
+from hwid.identify import disturbed
 from hwid.identify.joint_fit import numeric_jacobian
 from hwid.identify.result import HistoryResult, Level
 from hwid.identify.steady import steady_levels
@@ -62,6 +63,11 @@ def settled_levels(records, resolution: float | None = None) -> tuple[list[Level
     sigma = _robust_sigma(segments)
     tau = settle_constant(segments)
     cut = int(np.ceil(SETTLE_TAUS * tau))
+    per_record, cut_short = _undisturbed(per_record, cut, warns)
+    if cut_short:       # pushes inside the holds bend every level's fitted approach: fitted again without them
+        segments = [np.asarray(r.y[s["start"]:s["stop"]], float) for r, segs, _ in per_record for s in segs]
+        tau = settle_constant(segments)
+        cut = int(np.ceil(SETTLE_TAUS * tau))
     long = [(r, s) for r, segs, _ in per_record for s in segs if s["stop"] - s["start"] - cut >= MIN_STEADY]
     steady = {}
     if long:
@@ -75,6 +81,8 @@ def settled_levels(records, resolution: float | None = None) -> tuple[list[Level
         for s in segs:
             # the input's path since the last level: its turning points move F's state too
             for i in passage(np.asarray(r.u, float), done, s["start"]):
+                if k and levels[-1].u == r.u[i]:
+                    continue        # the rest of a hold cut short (a disturbance): no new input
                 levels.append(Level(r.name, k, float(r.u[i]), float(r.y[i]), float(max(sigma, 1e-300)), 0, False))
                 k += 1
             done = s["stop"]
@@ -82,7 +90,7 @@ def settled_levels(records, resolution: float | None = None) -> tuple[list[Level
             if y.size == 0:     # a level cut to nothing (a fit block that ends where it starts)
                 continue
             got = (steady.get((r.name, s["start"])) or _extrapolated(y, tau, max(sigma, (q or 0.0) / np.sqrt(12.0)))
-                   or _short_level(y, q, sigma))
+                   or _short_level(y, q, sigma, cut))
             if got is None:
                 # not scored, but kept in the sequence: the gear still passed through it
                 warns.append(f"{r.name}: the level at u = {s['value']:.6g} (t = {s['start'] * r.dt:.6g}-"
@@ -98,6 +106,40 @@ def settled_levels(records, resolution: float | None = None) -> tuple[list[Level
             levels.append(Level(r.name, k, float(s["value"]), mean, se, n))
             k += 1
     return levels, warns
+
+
+def _undisturbed(per_record, cut: int, warns: list[str]) -> tuple[list, bool]:
+    """Each record's levels with every disturbed hold (:mod:`hwid.identify.disturbed`: the output
+    moved beyond the noise while the input held) cut at the disturbance's onset, one line each; and
+    whether any was. A hold is searched from its settle cut or its first quarter, whichever is
+    earlier: a push inside a hold lengthens the common settle time fitted to all of them."""
+    quanta = [q for _, _, q in per_record if q]
+    q = max(quanta) if quanta else None
+
+    def first(s):
+        return s["start"] + min(cut, (s["stop"] - s["start"]) // 4)
+
+    held = [np.asarray(r.y[first(s):s["stop"]], float) for r, segs, _ in per_record for s in segs]
+    sigma = disturbed.noise_scale(held, q)
+    thr = disturbed.threshold(sigma, q)
+    out, any_cut = [], False
+    for r, segs, rq in per_record:
+        kept = []
+        for s in segs:
+            a = first(s)
+            y = np.asarray(r.y[a:s["stop"]], float)
+            k = disturbed.onset(y, thr)
+            if k is not None:
+                moved = float(np.max(np.abs(y[k:] - np.median(y[:max(k, 1)]))))
+                warns.append(f"{r.name}: the output moved by {moved:.4g} (more than {thr:.4g}: {disturbed.K:g} times "
+                             f"the noise's {sigma:.3g} from the quieter holds, or {disturbed.Q_FLOOR:g} quanta) while "
+                             f"the input held u = {s['value']:.6g}, from t = {(a + k) * r.dt:.6g} s to the hold's end "
+                             f"at {s['stop'] * r.dt:.6g} s (a push, a load or a slip): that part is left out of "
+                             "stage 1, the hold's settled output read before it")
+                s, any_cut = {**s, "stop": a + k}, True
+            kept.append(s)
+        out.append((r, kept, rq))
+    return out, any_cut
 
 
 def passage(u: np.ndarray, start: int, stop: int, most: int = 64) -> list[int]:
@@ -197,15 +239,20 @@ def _extrapolated(y: np.ndarray, tau: float, sigma: float, skip: int = 1):
     return float(coef[0]), float(max(sigma, 1e-300) * np.sqrt(cov[0, 0])), int(y.size)
 
 
-def _short_level(y: np.ndarray, q: float | None, sigma: float):
-    """``(mean, se, n)`` of a short level's last half (at least 3 samples) when it is evidently
-    steady -- its spread within two output quanta or three noise standard deviations -- else None."""
-    tail = y[y.size // 2:]
-    if tail.size < 3:
-        return None
+def _short_level(y: np.ndarray, q: float | None, sigma: float, cut: int | None = None):
+    """``(mean, se, n)`` of a short level's steady tail when it has one: the longest run of its last
+    samples whose spread stays within two output quanta or three noise standard deviations, when
+    that run holds at least 3 samples and covers the level's last half or all of it after the
+    settle cut ``cut`` (:data:`SETTLE_TAUS` of the levels' common time constant); else None."""
     tol = max(2.0 * (q or 0.0), 3.0 * sigma)
-    if tol == 0.0 or np.ptp(tail) > tol:
+    if tol == 0.0 or y.size < 3:
         return None
+    lo, hi = np.minimum.accumulate(y[::-1]), np.maximum.accumulate(y[::-1])
+    n = int(np.argmax(np.r_[hi - lo > tol, True]))        # samples from the end within tol
+    need = y.size - y.size // 2 if cut is None else min(y.size - y.size // 2, y.size - cut)
+    if n < max(3, need):
+        return None
+    tail = y[y.size - n:]
     return float(tail.mean()), float(sigma / np.sqrt(tail.size)), int(tail.size)
 
 

@@ -1,0 +1,82 @@
+"""Disturbed holds: the output moves beyond the noise while the input holds still (a push, a load,
+a slip), so the hold's average is not the settled output ``X = h_bar(F_bar[U])`` of eq. (9).
+
+A settled hold is noise about one value (after the settle cut of :mod:`hwid.identify.history`,
+what is left of G's approach is a monotone decay far smaller than at its start). A hold is
+**disturbed** where, after its first samples, the output
+
+(a) stays for at least :data:`SUSTAIN` samples beyond both the hold's opening value (median of
+    its first tenth, at least 3 samples) and its closing value (median of its last tenth) by more
+    than the threshold, on the same side of both: it went out and came back, or overshot where it
+    ended (a monotone approach, however slow, stays between the two); or
+(b) jumps by more than the threshold within :data:`JUMP` samples after an opening that stayed
+    within the threshold of its value: a step, which a decaying transient -- largest at the
+    start -- cannot make after a flat opening.
+
+The threshold is ``max(K * sigma, Q_FLOOR * q)``: ``sigma`` the noise's standard deviation from
+the quieter holds (:func:`noise_scale`: the lower quartile over holds of the robust scale of each
+one's last half, so up to three quarters of the holds disturbed do not raise it), ``q`` the output's quantum.
+``K = 5``: a Gaussian excursion beyond 5 sigma for two samples running has a probability of order
+1e-13 per pair of samples. The part of the hold before the disturbance (its onset: the first
+sample that leaves the opening value by more than the threshold, for :data:`SUSTAIN` samples) is
+what the hold says about the settled output; the rest is left out (:func:`onset`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+#: threshold in noise standard deviations
+K = 5.0
+#: and at least this many output quanta (a quantised hold reads its value +- one count)
+Q_FLOOR = 1.5
+#: samples beyond the threshold in a row that make an excursion (one is an outlier)
+SUSTAIN = 2
+#: samples within which a jump counts as a step (rule b)
+JUMP = 3
+
+
+def noise_scale(holds, quantum: float | None = None) -> float:
+    """The output noise's standard deviation from the quieter holds: the lower quartile over holds
+    of ``1.4826 MAD`` of each one's last half (at least 3 samples; where any approach is over)
+    about its own median (a quarter of the holds
+    undisturbed suffice; over 20 undisturbed holds of 100 Gaussian samples it is 0.95 sigma), at
+    least ``quantum / sqrt(12)``."""
+    tails = [np.asarray(y[len(y) // 2:], float) for y in holds]
+    scales = [1.4826 * float(np.median(np.abs(y - np.median(y)))) for y in tails if y.size >= 3]
+    floor = (quantum or 0.0) / np.sqrt(12.0)
+    return max(float(np.percentile(scales, 25)) if scales else 0.0, floor)
+
+
+def threshold(sigma: float, quantum: float | None = None) -> float:
+    return max(K * sigma, Q_FLOOR * (quantum or 0.0))
+
+
+def _runs_beyond(mask: np.ndarray) -> int | None:
+    """The first index at which ``mask`` holds for :data:`SUSTAIN` samples in a row."""
+    if mask.size < SUSTAIN:
+        return None
+    run = np.convolve(mask.astype(int), np.ones(SUSTAIN, int), "valid")
+    hits = np.flatnonzero(run == SUSTAIN)
+    return int(hits[0]) if hits.size else None
+
+
+def onset(y: np.ndarray, thr: float) -> int | None:
+    """The sample of ``y`` (a hold after its settle cut) at which a disturbance begins (module
+    docstring, rules a and b), or None when the hold is noise about one value."""
+    y = np.asarray(y, float)
+    n = y.size
+    m = max(3, n // 10)
+    if n < 2 * m + SUSTAIN or thr <= 0:
+        return None
+    first, last = float(np.median(y[:m])), float(np.median(y[-m:]))
+    away = np.abs(y - first) > thr
+    far = (y > max(first, last) + thr) | (y < min(first, last) - thr)
+    hit = _runs_beyond(far[m:])
+    if hit is None and not away[:m].any() and abs(last - first) > thr:
+        jumps = np.abs(y[m + JUMP:] - y[m:n - JUMP]) > thr
+        if jumps.any():
+            hit = 0
+    if hit is None:
+        return None
+    start = _runs_beyond(away[m:])
+    return m + (start if start is not None else hit)
