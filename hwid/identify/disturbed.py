@@ -9,9 +9,10 @@ what is left of G's approach is a monotone decay far smaller than at its start).
     its first tenth, at least 3 samples) and its closing value (median of its last tenth) by more
     than the threshold, on the same side of both: it went out and came back, or overshot where it
     ended (a monotone approach, however slow, stays between the two); or
-(b) jumps by more than the threshold within :data:`JUMP` samples after an opening that stayed
-    within the threshold of its value: a step, which a decaying transient -- largest at the
-    start -- cannot make after a flat opening.
+(b) moves by more than the threshold within :data:`JUMP` samples (at most the opening's length)
+    after an opening whose spread stayed within the threshold, and ends more than the threshold
+    away from it: a step, which a decaying transient -- largest at the start -- cannot make after
+    a flat opening.
 
 The threshold is ``max(K * sigma, Q_FLOOR * q)``: ``sigma`` the noise's standard deviation from
 the quieter holds (:func:`noise_scale`: the lower quartile over holds of the robust scale of each
@@ -31,8 +32,8 @@ K = 5.0
 Q_FLOOR = 1.5
 #: samples beyond the threshold in a row that make an excursion (one is an outlier)
 SUSTAIN = 2
-#: samples within which a jump counts as a step (rule b)
-JUMP = 3
+#: samples within which a move counts as a step (rule b; at most the opening's length)
+JUMP = 5
 
 
 def noise_scale(holds, quantum: float | None = None) -> float:
@@ -72,8 +73,9 @@ def onset(y: np.ndarray, thr: float) -> int | None:
     away = np.abs(y - first) > thr
     far = (y > max(first, last) + thr) | (y < min(first, last) - thr)
     hit = _runs_beyond(far[m:])
-    if hit is None and not away[:m].any() and abs(last - first) > thr:
-        jumps = np.abs(y[m + JUMP:] - y[m:n - JUMP]) > thr
+    w = min(JUMP, m)
+    if hit is None and np.ptp(y[:m]) <= thr and abs(last - first) > thr:
+        jumps = np.abs(y[m + w:] - y[m:n - w]) > thr
         if jumps.any():
             hit = 0
     if hit is None:

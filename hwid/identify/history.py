@@ -33,12 +33,13 @@ if sound.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 from scipy import optimize, special
 
 from hwid import HwidError
-from hwid.identify import disturbed
+from hwid.identify import determinable, disturbed
 from hwid.identify.joint_fit import numeric_jacobian
 from hwid.identify.result import HistoryResult, Level
 from hwid.identify.steady import steady_levels
@@ -281,9 +282,16 @@ class HistoryFit:
         names = list(dict.fromkeys(lv.record for lv in levels))
         u = np.array([lv.u for lv in levels if lv.scored])
         width = float(np.ptp(u)) or 1.0
+        des = determinable.design(levels)
+        if len(des.up) < 2:
+            raise HwidError(f"stage 1 from a recorded history cannot determine F and h_bar from these levels: "
+                            f"{len(des.up)} distinct level(s) approached from below ({determinable.describe(des.up)}) "
+                            f"and {len(des.down)} from above ({determinable.describe(des.down)}); hold at least 2 "
+                            "distinct levels above d+ approached from below and 2 below d- approached from above "
+                            "(or fit the whole model: identification.whole.enabled: true)")
         table, best = [], None
         for kind in self.types:
-            for degree in range(1, self.max_degree + 1):
+            for degree in range(1, min(self.max_degree, des.max_degree()) + 1):
                 prob = _Problem(levels, names, kind, degree)
                 if prob.n <= prob.n_outer + degree:
                     break
@@ -302,8 +310,9 @@ class HistoryFit:
             raise HwidError(f"stage 1 from a recorded history: {len(levels)} settled levels cannot determine "
                             "F and h (more levels, at more inputs, are needed)")
         _, prob, theta = best
-        self.problem_, self.theta_ = prob, theta
-        self.result_ = self._result(prob, theta, tuple(table), list(warnings))
+        self.problem_, self.theta_, self.design_ = prob, theta, des
+        res = self._result(prob, theta, tuple(table), list(warnings))
+        self.result_ = _honest(res, des, prob, theta, len(self.types) > 1)
         return self
 
     @staticmethod
@@ -351,6 +360,37 @@ class HistoryFit:
         return HistoryResult(prob.type, float(e_sd), float(theta[0]), float(theta[0] - e_gap),
                              tuple([0.0] + [float(a) for a in c]), ci, chi2, int(dof), p, bool(misfit), levels,
                              table, tuple(warns), tuple(tuple(float(x) for x in row) for row in cov_out), names)
+
+
+def _honest(res: HistoryResult, des, prob: "_Problem", theta, types_tried: bool) -> HistoryResult:
+    """``res`` with every parameter the levels cannot determine (:mod:`hwid.identify.determinable`),
+    every interval of zero width and every estimate at the edge of its search range reported as
+    undetermined: interval None and the reason, one warning line each."""
+    why = des.undetermined(prob.degree)
+    lo, hi = prob.bounds(float(np.ptp([lv.u for lv in prob.levels if lv.scored])) or 1.0)
+    edge = {"d_plus": 0, "slope_down": 1, "dead_band": 2}
+    for name, i in edge.items():
+        if name not in why and not lo[i] + 1e-6 * (hi[i] - lo[i]) < theta[i] < hi[i] - 1e-6 * (hi[i] - lo[i]):
+            why[name] = (f"the estimate sits at the edge of its search range [{lo[i]:.4g}, {hi[i]:.4g}] (of "
+                         f"{'ln ' if i else ''}{name}): these levels do not bound it")
+    if "dead_band" in why and "d_minus" not in why:
+        why["d_minus"] = why["dead_band"]
+    for name in ("d_plus", "d_minus", "dead_band", "slope_down"):
+        interval = res.ci[name]
+        if name not in why and interval is not None and not interval[1] - interval[0] > 1e-9 * (1.0 + abs(interval[0])):
+            why[name] = "its 95 % interval has zero width: the levels leave it unconstrained or exactly fitted"
+    if "adequacy" in why and types_tried:
+        why["type"] = "with no degrees of freedom left, either type of F reproduces the levels"
+    if not why:
+        return res
+    ci = dict(res.ci)
+    for name in ("d_plus", "d_minus", "dead_band", "slope_down"):
+        if name in why:
+            ci[name] = None
+    if "h_coefficients" in why:
+        ci["h_coefficients"] = [None for _ in res.ci["h_coefficients"]]
+    warns = list(res.warnings) + [f"undetermined {name}: {reason}" for name, reason in why.items()]
+    return replace(res, ci=ci, warnings=tuple(warns), undetermined=dict(why))
 
 
 class _Problem:
