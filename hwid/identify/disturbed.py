@@ -9,10 +9,12 @@ what is left of G's approach is a monotone decay far smaller than at its start).
     its first tenth, at least 3 samples) and its closing value (median of its last tenth) by more
     than the threshold, on the same side of both: it went out and came back, or overshot where it
     ended (a monotone approach, however slow, stays between the two); or
-(b) moves by more than the threshold within :data:`JUMP` samples (at most the opening's length)
-    after an opening whose spread stayed within the threshold, and ends more than the threshold
-    away from it: a step, which a decaying transient -- largest at the start -- cannot make after
-    a flat opening.
+(b) leaves an opening whose spread stayed within the threshold by a step: the first samples
+    that stay beyond the threshold from the opening value lie more than the threshold from where
+    the output was :data:`JUMP` samples before (at most the opening's length; the median of the
+    three samples there). A decaying
+    transient -- largest at the start -- cannot step after a flat opening, and a slow drift
+    crosses the threshold a little at a time.
 
 The threshold is ``max(K * sigma, Q_FLOOR * q)``: ``sigma`` the noise's standard deviation from
 the quieter holds (:func:`noise_scale`: the lower quartile over holds of the robust scale of each
@@ -70,15 +72,15 @@ def onset(y: np.ndarray, thr: float) -> int | None:
     if n < 2 * m + SUSTAIN or thr <= 0:
         return None
     first, last = float(np.median(y[:m])), float(np.median(y[-m:]))
-    away = np.abs(y - first) > thr
-    far = (y > max(first, last) + thr) | (y < min(first, last) - thr)
-    hit = _runs_beyond(far[m:])
-    w = min(JUMP, m)
-    if hit is None and np.ptp(y[:m]) <= thr and abs(last - first) > thr:
-        jumps = np.abs(y[m + w:] - y[m:n - w]) > thr
-        if jumps.any():
-            hit = 0
-    if hit is None:
+    away = _runs_beyond(np.abs(y[m:] - first) > thr)       # the first sustained excursion
+    if away is None:
         return None
-    start = _runs_beyond(away[m:])
-    return m + (start if start is not None else hit)
+    k = m + away
+    far = (y > max(first, last) + thr) | (y < min(first, last) - thr)
+    if _runs_beyond(far[m:]) is not None:                  # rule (a)
+        return k
+    w = min(JUMP, m)
+    step = abs(float(np.median(y[k:k + SUSTAIN])) - float(np.median(y[max(k - w - 1, 0):k - w + 2])))
+    if np.ptp(y[:m]) <= thr and step > thr:                # rule (b)
+        return k
+    return None
