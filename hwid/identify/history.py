@@ -13,13 +13,26 @@ Settled outputs: the settle time is found from the data (:func:`settle_constant`
 constant for every level's approach through h, five of them left out of each level); what remains of a level,
 when at least 20 samples, goes to :func:`hwid.identify.steady.steady_levels` (any transient left
 found from the data again, batch-means standard errors); shorter ones by extrapolating their
-approach with the common time constant (:func:`_extrapolated`), or, shorter than 6 samples, from
-their last half when it is evidently steady (spread within two output quanta or three noise standard
-deviations, the noise from the levels' successive differences); otherwise the level is not scored,
+approach with the common time constant (:func:`_extrapolated`), or from their steady tail when it
+is evident (spread within two output quanta or three noise standard deviations, the noise from the
+levels' successive differences, over the last half or all after the settle cut; :func:`_short_level`);
+otherwise the level is not scored,
 with one line saying how many samples would be needed, but it stays in the sequence F's recursion
 runs over (a level the gear passed through moves its state whether or not it settled).
 Quantised outputs: a settled level read to the nearest count carries ``q / sqrt(12)`` that
 averaging does not remove, so every standard error is at least that.
+
+The input's path between held levels (a stretch too short to be a level, a sine, a ramp) enters F's
+recursion through its turning points (:func:`passage`), unscored. A hold in which the output moves
+beyond the noise while the input holds still (a push, a load, a slip; :mod:`hwid.identify.disturbed`)
+is read up to the disturbance only, with one line naming it. A record cut out of a longer one finds
+its own levels (:func:`record_levels`).
+
+Before the fit, what the levels can determine is counted (:mod:`hwid.identify.determinable`): too
+few distinct levels approached from below is a :class:`hwid.HwidError`; h_bar's degree is kept to
+what the design determines; a parameter the levels cannot determine, an estimate at the edge of its
+search range and a zero-width interval are reported undetermined (interval None, the reason in
+``undetermined``), and so is the fit's adequacy where no degree of freedom is left to judge it.
 
 Fit: weighted least squares on ``(X_k - h_bar(v_k)) / se_k``; h_bar's coefficients (no constant,
 ``h_bar(0) = 0``) solved for at every step (variable projection); type and degree chosen by the
