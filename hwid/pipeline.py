@@ -75,6 +75,7 @@ def _run_recorded(cfg, out: Path, report: bool, echo) -> dict:
     """A recorded plant: its records to ``simulation.h5``; stage 1 from their levels where they hold
     enough (``history.h5``); the whole-model fit on them when ``identification.whole.enabled``."""
     from hwid.identify.history import identify_recorded
+    from hwid.identify.result import interval_text
     from hwid.recorded import describe, load_records
     from hwid.results import write_history
     times: dict[str, float] = {}
@@ -94,7 +95,7 @@ def _run_recorded(cfg, out: Path, report: bool, echo) -> dict:
         paths["history"] = write_history(out / "history.h5", cfg, hist)
         times["history"] = time.perf_counter() - t0
         echo(f"stage 1 from the levels: {hist.type}, d+ = {hist.d_plus:.4g}, d- = {hist.d_minus:.4g}, dead band "
-             f"{hist.dead_band:.4g} [{hist.ci['dead_band'][0]:.4g}, {hist.ci['dead_band'][1]:.4g}], "
+             f"{interval_text(hist.dead_band, hist.ci['dead_band'], 4)}, "
              f"S^d = {hist.slope_down:.4g}{' (MISFIT)' if hist.misfit else ''}")
         for w in hist.warnings:
             echo(f"warning: {w}")

@@ -15,9 +15,11 @@ physical quantity:
   above, before any pull (the relaxed samples right after the target step): what the servo's
   position loop and its gear together leave between the two directions of approach.
 * **hwid, stage 1 from the log's levels** (:mod:`hwid.identify.history`) on the settled, unpushed
-  levels: the dead band ``d+ - d-`` of the backlash that maps target to measured position, with its
-  95 % interval; and on the log as recorded (pushes included), what ``hwid identify-nonlinear``
-  gives on ``configs/recorded_sts3215.yaml``.
+  levels picked here: the dead band ``d+ - d-`` of the backlash that maps target to measured
+  position, with its 95 % interval and how far the fit can be trusted (``adequate``, ``misfit``,
+  or ``undetermined`` where the levels leave no degree of freedom to judge it). hwid on the logs
+  as recorded, from plain configs, with the pushes found by hwid itself:
+  ``experiments/real/sts3215_table.py``.
 
 Usage: ``python experiments/real/sts3215.py [CSV ...]`` (default: every log in the folder). The
 roles are read from each log's targets (:func:`stands`: a puller's target takes two values, a
@@ -32,10 +34,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from hwid import HwidError
 from hwid.identify.history import HistoryFit
 from hwid.identify.result import Level
 
-FOLDER = Path(__file__).resolve().parents[3] / "shared" / "data" / "real" / "sts3215"
+FOLDER = next((p for p in (Path(__file__).resolve().parents[3] / "shared" / "data" / "real" / "sts3215",
+                         Path(__file__).resolve().parents[4] / "shared" / "data" / "real" / "sts3215") if p.is_dir()),
+              Path(__file__).resolve().parents[3] / "shared" / "data" / "real" / "sts3215")
 HOME, DUT = 2047, 5
 PULLERS = {3: {"relaxed": 1747, "pull": 2147}, 4: {"relaxed": 2347, "pull": 1947}}
 DEGREES_PER_COUNT = 360.0 / 4096
@@ -147,9 +152,10 @@ def branch_gap(levels: list[Level]) -> float:
 
 
 def main(paths) -> None:
+    from sts3215_table import trust
     print("| log | authors: loaded play | authors: unloaded play | hwid: branch gap | hwid stage 1 on the unpushed levels: "
-          "type, dead band d+ - d- [95 %] | chi2 / dof |")
-    print("|---|---|---|---|---|---|")
+          "type, dead band d+ - d- [95 %] | chi2 / dof | trust |")
+    print("|---|---|---|---|---|---|---|")
     for path in paths:
         df = pd.read_csv(path)
         for stand in stands(df):
@@ -157,17 +163,21 @@ def main(paths) -> None:
             levels = settled_unpushed(df, stand)
             gap = branch_gap(levels)
             try:
+                # a fit with no degree of freedom left to judge it (three targets: four distinct
+                # points for four parameters) says so in the trust column; its chi-square measures
+                # only the repeats' scatter (on hand-picked readings to the count, often exactly 0)
                 res = HistoryFit(max_degree=3).fit(levels).result_
-                lo, hi = res.ci["dead_band"]
-                fit = (f"{res.type}, {res.dead_band:.2f} [{lo:.2f}, {hi:.2f}] counts "
-                       f"({res.dead_band * DEGREES_PER_COUNT:.2f} deg){' MISFIT' if res.misfit else ''}")
-                chi = f"{res.chi2:.3g} / {res.dof}"
-            except Exception as err:                    # too few levels in a log: say so in the row
-                fit, chi = f"not identifiable ({err})", "-"
+                ci = res.ci["dead_band"]
+                band = (f"{res.dead_band:.2f} [{ci[0]:.2f}, {ci[1]:.2f}] counts "
+                        f"({res.dead_band * DEGREES_PER_COUNT:.2f} deg)" if ci is not None else "undetermined")
+                fit = f"{res.type}{' (type undetermined)' if 'type' in res.undetermined else ''}, {band}"
+                chi, verdict = f"{res.chi2:.3g} / {res.dof}", trust(res)
+            except HwidError as err:                    # too few levels in a log: say so in the row
+                fit, chi, verdict = f"not identifiable ({err})", "-", "-"
             print(f"| {Path(path).name} (motor {stand.dut}, {len(levels)} levels) | "
                   f"{a['loaded']:.2f} counts ({a['loaded'] * DEGREES_PER_COUNT:.2f} deg) | "
                   f"{a['unloaded']:.2f} counts ({a['unloaded'] * DEGREES_PER_COUNT:.2f} deg) | {gap:.2f} counts | "
-                  f"{fit} | {chi} |")
+                  f"{fit} | {chi} | {verdict} |")
 
 
 def held_out(path: Path, out: Path, split_s: float | None = None) -> None:

@@ -13,13 +13,26 @@ Settled outputs: the settle time is found from the data (:func:`settle_constant`
 constant for every level's approach through h, five of them left out of each level); what remains of a level,
 when at least 20 samples, goes to :func:`hwid.identify.steady.steady_levels` (any transient left
 found from the data again, batch-means standard errors); shorter ones by extrapolating their
-approach with the common time constant (:func:`_extrapolated`), or, shorter than 6 samples, from
-their last half when it is evidently steady (spread within two output quanta or three noise standard
-deviations, the noise from the levels' successive differences); otherwise the level is not scored,
+approach with the common time constant (:func:`_extrapolated`), or from their steady tail when it
+is evident (spread within two output quanta or three noise standard deviations, the noise from the
+levels' successive differences, over the last half or all after the settle cut; :func:`_short_level`);
+otherwise the level is not scored,
 with one line saying how many samples would be needed, but it stays in the sequence F's recursion
 runs over (a level the gear passed through moves its state whether or not it settled).
 Quantised outputs: a settled level read to the nearest count carries ``q / sqrt(12)`` that
 averaging does not remove, so every standard error is at least that.
+
+The input's path between held levels (a stretch too short to be a level, a sine, a ramp) enters F's
+recursion through its turning points (:func:`passage`), unscored. A hold in which the output moves
+beyond the noise while the input holds still (a push, a load, a slip; :mod:`hwid.identify.disturbed`)
+is read up to the disturbance only, with one line naming it. A record cut out of a longer one finds
+its own levels (:func:`record_levels`).
+
+Before the fit, what the levels can determine is counted (:mod:`hwid.identify.determinable`): too
+few distinct levels approached from below is a :class:`hwid.HwidError`; h_bar's degree is kept to
+what the design determines; a parameter the levels cannot determine, an estimate at the edge of its
+search range and a zero-width interval are reported undetermined (interval None, the reason in
+``undetermined``), and so is the fit's adequacy where no degree of freedom is left to judge it.
 
 Fit: weighted least squares on ``(X_k - h_bar(v_k)) / se_k``; h_bar's coefficients (no constant,
 ``h_bar(0) = 0``) solved for at every step (variable projection); type and degree chosen by the
@@ -33,11 +46,13 @@ if sound.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 from scipy import optimize, special
 
 from hwid import HwidError
+from hwid.identify import determinable, disturbed
 from hwid.identify.joint_fit import numeric_jacobian
 from hwid.identify.result import HistoryResult, Level
 from hwid.identify.steady import steady_levels
@@ -52,18 +67,21 @@ SETTLE_TAUS = 5.0
 def settled_levels(records, resolution: float | None = None) -> tuple[list[Level], list[str]]:
     """The settled levels of every record (attribute ``segments`` from :mod:`hwid.recorded`, or the
     piecewise-constant stretches of ``u``), with their standard errors; and the warnings."""
-    from hwid.recorded import level_segments
     warns: list[str] = []
     per_record = []
     for r in records:
-        segs = json.loads(r.attrs["segments"]) if "segments" in r.attrs else level_segments(np.asarray(r.u, float))
-        segs = [s for s in segs if s["kind"] == "level"]
+        segs = record_levels(r)
         q = resolution if resolution is not None else (float(r.attrs.get("output_resolution", 0.0)) or None)
         per_record.append((r, segs, q))
     segments = [np.asarray(r.y[s["start"]:s["stop"]], float) for r, segs, _ in per_record for s in segs]
     sigma = _robust_sigma(segments)
     tau = settle_constant(segments)
     cut = int(np.ceil(SETTLE_TAUS * tau))
+    per_record, cut_short = _undisturbed(per_record, cut, warns)
+    if cut_short:       # pushes inside the holds bend every level's fitted approach: fitted again without them
+        segments = [np.asarray(r.y[s["start"]:s["stop"]], float) for r, segs, _ in per_record for s in segs]
+        tau = settle_constant(segments)
+        cut = int(np.ceil(SETTLE_TAUS * tau))
     long = [(r, s) for r, segs, _ in per_record for s in segs if s["stop"] - s["start"] - cut >= MIN_STEADY]
     steady = {}
     if long:
@@ -73,18 +91,26 @@ def settled_levels(records, resolution: float | None = None) -> tuple[list[Level
         warns += list(st.warnings)
     levels: list[Level] = []
     for r, segs, q in per_record:
-        k = 0
+        k, done = 0, 0
         for s in segs:
+            # the input's path since the last level: its turning points move F's state too
+            for i in passage(np.asarray(r.u, float), done, s["start"]):
+                if k and levels[-1].u == r.u[i]:
+                    continue        # the rest of a hold cut short (a disturbance): no new input
+                levels.append(Level(r.name, k, float(r.u[i]), float(r.y[i]), float(max(sigma, 1e-300)), 0, False))
+                k += 1
+            done = s["stop"]
             y = np.asarray(r.y[s["start"]:s["stop"]], float)
             if y.size == 0:     # a level cut to nothing (a fit block that ends where it starts)
                 continue
             got = (steady.get((r.name, s["start"])) or _extrapolated(y, tau, max(sigma, (q or 0.0) / np.sqrt(12.0)))
-                   or _short_level(y, q, sigma))
+                   or _short_level(y, q, sigma, cut))
             if got is None:
                 # not scored, but kept in the sequence: the gear still passed through it
-                warns.append(f"{r.name}: the level at u = {s['value']:.6g} (samples {s['start']}-{s['stop']}) is "
-                             f"still moving at its end; holds of at least {MIN_STEADY} samples are needed to find "
-                             "its steady state: not scored (the input's passage through it is kept)")
+                warns.append(f"{r.name}: the level at u = {s['value']:.6g} (t = {s['start'] * r.dt:.6g}-"
+                             f"{s['stop'] * r.dt:.6g} s, samples {s['start']}-{s['stop']}) is still moving at its "
+                             f"end; holds of at least {MIN_STEADY} samples after the settle time of {cut} samples "
+                             "are needed to find its steady state: not scored (the input's passage through it is kept)")
                 levels.append(Level(r.name, k, float(s["value"]), float(y[-1]), float(max(sigma, 1e-300)), 0, False))
                 k += 1
                 continue
@@ -94,6 +120,81 @@ def settled_levels(records, resolution: float | None = None) -> tuple[list[Level
             levels.append(Level(r.name, k, float(s["value"]), mean, se, n))
             k += 1
     return levels, warns
+
+
+def _undisturbed(per_record, cut: int, warns: list[str]) -> tuple[list, bool]:
+    """Each record's levels with every disturbed hold (:mod:`hwid.identify.disturbed`: the output
+    moved beyond the noise while the input held) cut at the disturbance's onset, one line each; and
+    whether any was. A hold is searched from its settle cut or its first quarter, whichever is
+    earlier: a push inside a hold lengthens the common settle time fitted to all of them."""
+    quanta = [q for _, _, q in per_record if q]
+    q = max(quanta) if quanta else None
+
+    def first(s):
+        return s["start"] + min(cut, (s["stop"] - s["start"]) // 4)
+
+    held = [np.asarray(r.y[first(s):s["stop"]], float) for r, segs, _ in per_record for s in segs]
+    sigma = disturbed.noise_scale(held, q)
+    thr = disturbed.threshold(sigma, q)
+    out, any_cut = [], False
+    for r, segs, rq in per_record:
+        kept = []
+        for s in segs:
+            a = first(s)
+            y = np.asarray(r.y[a:s["stop"]], float)
+            k = disturbed.onset(y, thr)
+            if k is not None:
+                moved = float(np.max(np.abs(y[k:] - np.median(y[:max(k, 1)]))))
+                warns.append(f"{r.name}: the output moved by {moved:.4g} (more than {thr:.4g}: {disturbed.K:g} times "
+                             f"the noise's {sigma:.3g} from the quieter holds, or {disturbed.Q_FLOOR:g} quanta) while "
+                             f"the input held u = {s['value']:.6g}, from t = {(a + k) * r.dt:.6g} s to the hold's end "
+                             f"at {s['stop'] * r.dt:.6g} s (a push, a load or a slip): that part is left out of "
+                             "stage 1, the hold's settled output read before it")
+                s, any_cut = {**s, "stop": a + k}, True
+            kept.append(s)
+        out.append((r, kept, rq))
+    return out, any_cut
+
+
+def passage(u: np.ndarray, start: int, stop: int, most: int = 64) -> list[int]:
+    """The samples of ``u[start:stop]`` (the input between two held levels: a stretch too short to
+    be a level, a sine, a ramp) at which it turns, and its last one: F's steady recursion over them
+    ends in the state the whole path leaves (between turning points the path is monotone, and a
+    monotone path leaves a Backlash or a Backlash-Inverse where a step to its end would). Beyond
+    ``most`` turning points only those outside the range of all later ones are kept (the play's
+    wiping-out property: a later wider excursion erases an earlier narrower one)."""
+    x = np.asarray(u[start:stop], float)
+    if x.size == 0:
+        return []
+    keep = np.flatnonzero(np.r_[np.diff(x) != 0, True])       # the last sample of each constant run
+    v = x[keep]
+    d = np.sign(np.diff(v))
+    turn = np.r_[np.flatnonzero(d[1:] != d[:-1]) + 1, v.size - 1] if v.size > 1 else np.array([0])
+    idx = keep[turn]
+    if idx.size > most:
+        lo, hi, out = np.inf, -np.inf, []
+        for i in idx[::-1]:
+            if x[i] < lo or x[i] > hi:
+                out.append(i)
+                lo, hi = min(lo, x[i]), max(hi, x[i])
+        idx = np.array(out[::-1])
+    return [int(start + i) for i in idx]
+
+
+def record_levels(record) -> list[dict]:
+    """The held levels of ``record``: its ``segments`` attribute (:mod:`hwid.recorded`) where that
+    describes this record's own input -- every level inside it and the input constant at the level's
+    value there -- else the piecewise-constant stretches of its ``u`` found again. A record cut out of
+    a longer one (a fit block, an excluded window) keeps its parent's attributes; their sample
+    numbers then point past its end or at other samples."""
+    from hwid.recorded import level_segments
+    u = np.asarray(record.u, float)
+    if "segments" in record.attrs:
+        segs = [s for s in json.loads(record.attrs["segments"]) if s["kind"] == "level"]
+        if all(0 <= s["start"] < s["stop"] <= u.size and np.all(u[s["start"]:s["stop"]] == s["value"])
+               for s in segs):
+            return segs
+    return level_segments(u)
 
 
 def settle_constant(segments, skip: int = 1) -> float:
@@ -152,15 +253,20 @@ def _extrapolated(y: np.ndarray, tau: float, sigma: float, skip: int = 1):
     return float(coef[0]), float(max(sigma, 1e-300) * np.sqrt(cov[0, 0])), int(y.size)
 
 
-def _short_level(y: np.ndarray, q: float | None, sigma: float):
-    """``(mean, se, n)`` of a short level's last half (at least 3 samples) when it is evidently
-    steady -- its spread within two output quanta or three noise standard deviations -- else None."""
-    tail = y[y.size // 2:]
-    if tail.size < 3:
-        return None
+def _short_level(y: np.ndarray, q: float | None, sigma: float, cut: int | None = None):
+    """``(mean, se, n)`` of a short level's steady tail when it has one: the longest run of its last
+    samples whose spread stays within two output quanta or three noise standard deviations, when
+    that run holds at least 3 samples and covers the level's last half or all of it after the
+    settle cut ``cut`` (:data:`SETTLE_TAUS` of the levels' common time constant); else None."""
     tol = max(2.0 * (q or 0.0), 3.0 * sigma)
-    if tol == 0.0 or np.ptp(tail) > tol:
+    if tol == 0.0 or y.size < 3:
         return None
+    lo, hi = np.minimum.accumulate(y[::-1]), np.maximum.accumulate(y[::-1])
+    n = int(np.argmax(np.r_[hi - lo > tol, True]))        # samples from the end within tol
+    need = y.size - y.size // 2 if cut is None else min(y.size - y.size // 2, y.size - cut)
+    if n < max(3, need):
+        return None
+    tail = y[y.size - n:]
     return float(tail.mean()), float(sigma / np.sqrt(tail.size)), int(tail.size)
 
 
@@ -189,9 +295,16 @@ class HistoryFit:
         names = list(dict.fromkeys(lv.record for lv in levels))
         u = np.array([lv.u for lv in levels if lv.scored])
         width = float(np.ptp(u)) or 1.0
+        des = determinable.design(levels)
+        if len(des.up) < 2:
+            raise HwidError(f"stage 1 from a recorded history cannot determine F and h_bar from these levels: "
+                            f"{len(des.up)} distinct level(s) approached from below ({determinable.describe(des.up)}) "
+                            f"and {len(des.down)} from above ({determinable.describe(des.down)}); hold at least 2 "
+                            "distinct levels above d+ approached from below and 2 below d- approached from above "
+                            "(or fit the whole model: identification.whole.enabled: true)")
         table, best = [], None
         for kind in self.types:
-            for degree in range(1, self.max_degree + 1):
+            for degree in range(1, min(self.max_degree, des.max_degree()) + 1):
                 prob = _Problem(levels, names, kind, degree)
                 if prob.n <= prob.n_outer + degree:
                     break
@@ -210,8 +323,9 @@ class HistoryFit:
             raise HwidError(f"stage 1 from a recorded history: {len(levels)} settled levels cannot determine "
                             "F and h (more levels, at more inputs, are needed)")
         _, prob, theta = best
-        self.problem_, self.theta_ = prob, theta
-        self.result_ = self._result(prob, theta, tuple(table), list(warnings))
+        self.problem_, self.theta_, self.design_ = prob, theta, des
+        res = self._result(prob, theta, tuple(table), list(warnings))
+        self.result_ = _honest(res, des, prob, theta, len(self.types) > 1)
         return self
 
     @staticmethod
@@ -259,6 +373,37 @@ class HistoryFit:
         return HistoryResult(prob.type, float(e_sd), float(theta[0]), float(theta[0] - e_gap),
                              tuple([0.0] + [float(a) for a in c]), ci, chi2, int(dof), p, bool(misfit), levels,
                              table, tuple(warns), tuple(tuple(float(x) for x in row) for row in cov_out), names)
+
+
+def _honest(res: HistoryResult, des, prob: "_Problem", theta, types_tried: bool) -> HistoryResult:
+    """``res`` with every parameter the levels cannot determine (:mod:`hwid.identify.determinable`),
+    every interval of zero width and every estimate at the edge of its search range reported as
+    undetermined: interval None and the reason, one warning line each."""
+    why = des.undetermined(prob.degree)
+    lo, hi = prob.bounds(float(np.ptp([lv.u for lv in prob.levels if lv.scored])) or 1.0)
+    edge = {"d_plus": 0, "slope_down": 1, "dead_band": 2}
+    for name, i in edge.items():
+        if name not in why and not lo[i] + 1e-6 * (hi[i] - lo[i]) < theta[i] < hi[i] - 1e-6 * (hi[i] - lo[i]):
+            why[name] = (f"the estimate sits at the edge of its search range [{lo[i]:.4g}, {hi[i]:.4g}] (of "
+                         f"{'ln ' if i else ''}{name}): these levels do not bound it")
+    if "dead_band" in why and "d_minus" not in why:
+        why["d_minus"] = why["dead_band"]
+    for name in ("d_plus", "d_minus", "dead_band", "slope_down"):
+        interval = res.ci[name]
+        if name not in why and interval is not None and not interval[1] - interval[0] > 1e-9 * (1.0 + abs(interval[0])):
+            why[name] = "its 95 % interval has zero width: the levels leave it unconstrained or exactly fitted"
+    if "adequacy" in why and types_tried:
+        why["type"] = "with no degrees of freedom left, either type of F reproduces the levels"
+    if not why:
+        return res
+    ci = dict(res.ci)
+    for name in ("d_plus", "d_minus", "dead_band", "slope_down"):
+        if name in why:
+            ci[name] = None
+    if "h_coefficients" in why:
+        ci["h_coefficients"] = [None for _ in res.ci["h_coefficients"]]
+    warns = list(res.warnings) + [f"undetermined {name}: {reason}" for name, reason in why.items()]
+    return replace(res, ci=ci, warnings=tuple(warns), undetermined=dict(why))
 
 
 class _Problem:

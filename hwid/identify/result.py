@@ -315,6 +315,9 @@ class HistoryResult:
     # covariance of (c1..cp, d_plus, slope_down, d_minus), for stage 2's delta method
     cov: tuple = field(default=())
     param_names: tuple = field(default=())
+    # {parameter (or "type", "adequacy"): reason} for what the levels cannot determine; such a
+    # parameter's interval in ``ci`` is None (:mod:`hwid.identify.determinable`)
+    undetermined: dict = field(default_factory=dict)
 
     @property
     def dead_band(self) -> float:
@@ -323,33 +326,50 @@ class HistoryResult:
     def to_dict(self) -> dict:
         return {"type": self.type, "slope_up": 1.0, "slope_down": self.slope_down, "d_plus": self.d_plus,
                 "d_minus": self.d_minus, "dead_band": self.dead_band, "h_coefficients": list(self.h_coefficients),
-                "ci": {k: ([list(p) for p in v] if k == "h_coefficients" else list(v)) for k, v in self.ci.items()},
+                "ci": {k: ([_interval(p) for p in v] if k == "h_coefficients" else _interval(v))
+                       for k, v in self.ci.items()},
                 "chi2": self.chi2, "dof": self.dof,
                 "p_value": self.p_value, "misfit": self.misfit,
                 "levels": [vars(lv) for lv in self.levels], "selection": list(self.table),
                 "warnings": list(self.warnings), "cov": [list(row) for row in self.cov],
-                "param_names": list(self.param_names)}
+                "param_names": list(self.param_names), "undetermined": dict(self.undetermined)}
 
     @classmethod
     def from_dict(cls, d: dict) -> "HistoryResult":
-        ci = {k: tuple(v) for k, v in d["ci"].items() if k != "h_coefficients"}
-        ci["h_coefficients"] = [tuple(v) for v in d["ci"]["h_coefficients"]]
+        ci = {k: _interval(v) for k, v in d["ci"].items() if k != "h_coefficients"}
+        ci["h_coefficients"] = [_interval(v) for v in d["ci"]["h_coefficients"]]
         return cls(d["type"], float(d["slope_down"]), float(d["d_plus"]), float(d["d_minus"]),
                    tuple(d["h_coefficients"]), ci, float(d["chi2"]), int(d["dof"]), float(d["p_value"]),
                    bool(d["misfit"]), tuple(Level(**lv) for lv in d["levels"]), tuple(d["selection"]),
                    tuple(d["warnings"]), tuple(tuple(row) for row in d.get("cov", ())),
-                   tuple(d.get("param_names", ())))
+                   tuple(d.get("param_names", ())), dict(d.get("undetermined", {})))
+
+
+def _interval(v):
+    """An interval as JSON: ``[lo, hi]``, or None where the parameter is undetermined."""
+    return None if v is None else [float(x) for x in v]
+
+
+def interval_text(value: float, interval, digits: int = 6) -> str:
+    """``value  [lo, hi]``, or ``undetermined`` where the interval is None."""
+    if interval is None:
+        return f"undetermined (fitted {value:.{digits}g}, not a measurement)"
+    return f"{value:.{digits}g}  [{interval[0]:.{digits}g}, {interval[1]:.{digits}g}]"
 
 
 def format_history(res: HistoryResult) -> str:
     """The CLI's text summary of stage 1 from a recorded history."""
-    ci = res.ci
-    lines = [f"stage 1 from the recorded levels: {res.type}{'  (MISFIT: see the warning)' if res.misfit else ''}",
-             f"  d+ = {res.d_plus:.6g}  [{ci['d_plus'][0]:.6g}, {ci['d_plus'][1]:.6g}]",
-             f"  d- = {res.d_minus:.6g}  [{ci['d_minus'][0]:.6g}, {ci['d_minus'][1]:.6g}]",
-             f"  dead band d+ - d- = {res.dead_band:.6g}  [{ci['dead_band'][0]:.6g}, {ci['dead_band'][1]:.6g}]",
-             f"  S^d = {res.slope_down:.6g}  [{ci['slope_down'][0]:.6g}, {ci['slope_down'][1]:.6g}]",
-             f"  h_bar degree {len(res.h_coefficients) - 1}: {', '.join(f'{c:.4g}' for c in res.h_coefficients)}",
+    ci, und = res.ci, res.undetermined
+    flag = "  (MISFIT: see the warning)" if res.misfit else ""
+    if "adequacy" in und:
+        flag += "  (fit UNDETERMINED: it cannot be judged, see the warning)"
+    lines = [f"stage 1 from the recorded levels: {res.type}{' (type undetermined)' if 'type' in und else ''}{flag}",
+             f"  d+ = {interval_text(res.d_plus, ci['d_plus'])}",
+             f"  d- = {interval_text(res.d_minus, ci['d_minus'])}",
+             f"  dead band d+ - d- = {interval_text(res.dead_band, ci['dead_band'])}",
+             f"  S^d = {interval_text(res.slope_down, ci['slope_down'])}",
+             f"  h_bar degree {len(res.h_coefficients) - 1}: {', '.join(f'{c:.4g}' for c in res.h_coefficients)}"
+             + ("  (undetermined)" if "h_coefficients" in und else ""),
              f"  {sum(lv.scored for lv in res.levels)} levels scored; chi2 = {res.chi2:.4g} on {res.dof} dof "
              f"(p = {res.p_value:.2g})"]
     return "\n".join(lines)

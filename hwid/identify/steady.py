@@ -37,6 +37,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import linalg
 
+from hwid import HwidError
+
 
 @dataclass(frozen=True)
 class SteadyLevels:
@@ -154,10 +156,10 @@ def steady_levels(y_segments: list[np.ndarray], offsets=None, pool: bool = True,
     """
     segs = [np.asarray(s, float) for s in y_segments]
     if not segs:
-        raise ValueError("no levels to average")
+        raise HwidError("no levels to average")
     short = min(s.size for s in segs)
     if short < 20:
-        raise ValueError(f"a level holds only {short} samples; at least 20 are needed to find its steady state")
+        raise HwidError(f"a level holds only {short} samples; at least 20 are needed to find its steady state")
     offsets = np.zeros(len(segs), int) if offsets is None else np.asarray(offsets, int)
     warns: list[str] = []
     span = max(float(np.ptp(np.concatenate(segs))), float(np.max(np.abs(np.concatenate(segs)))), 1e-300)

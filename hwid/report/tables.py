@@ -318,12 +318,17 @@ def history_html(hist) -> str:
     """Stage 1 from a recorded history: estimates with 95 % intervals, the fit's chi-square (a
     misfit said as such), every settled level used, and the selection table."""
     rows = [_tr(["parameter", "estimate", "95 % interval"], True)]
+    und = getattr(hist, "undetermined", {}) or {}
+
+    def interval(ci, name):
+        return (f"undetermined: {_html.escape(und.get(name, 'not determined by these levels'))}" if ci is None
+                else f"[{_num(ci[0])}, {_num(ci[1])}]")
+
     for name in ("d_plus", "d_minus", "dead_band", "slope_down"):
-        lo, hi = hist.ci[name]
-        rows.append(_tr([name, _num(getattr(hist, name)), f"[{_num(lo)}, {_num(hi)}]"]))
-    for i, (c, (lo, hi)) in enumerate(zip(hist.h_coefficients, hist.ci["h_coefficients"])):
+        rows.append(_tr([name, _num(getattr(hist, name)), interval(hist.ci[name], name)]))
+    for i, (c, ci) in enumerate(zip(hist.h_coefficients, hist.ci["h_coefficients"])):
         if i:
-            rows.append(_tr([f"h_bar c{i}", _num(c), f"[{_num(lo)}, {_num(hi)}]"]))
+            rows.append(_tr([f"h_bar c{i}", _num(c), interval(ci, "h_coefficients")]))
     levels = [_tr(["record", "#", "u", "settled output", "standard error", "samples", "scored"], True)]
     for lv in hist.levels:
         levels.append(_tr([_html.escape(lv.record), str(lv.index), _num(lv.u), _num(lv.x), _num(lv.se), str(lv.n),

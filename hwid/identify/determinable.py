@@ -1,0 +1,89 @@
+"""What a set of held levels can determine, before stage 1 fits them (issue 45, item 3).
+
+Stage 1's steady model ``X = h_bar(F_bar[U])`` (eqs. 5, 7a-b, 14a-b) reads each branch of F
+through the levels that reach it: with ``slope_up = 1`` the ascending branch ``u - d^+`` (Backlash)
+or ``u + d^+`` (Backlash-Inverse) through the levels approached from below, the descending one
+``S^d (u - d^-)`` or ``u / S^d + d^-`` through those approached from above. A level is one point
+``(u, direction)`` however often it is repeated; repeats measure the noise, not the model. So
+
+* ``d^+`` and ``h_bar`` of degree ``p`` need ``p + 1`` distinct levels approached from below
+  (eq. 11: ``N - j_a >= p + 1``);
+* ``S^d`` and ``d^-`` need 2 distinct levels approached from above (given ``h_bar``);
+* the dead band ``d^+ - d^-`` needs both;
+* judging the fit (its chi-square against the levels' noise) needs more distinct points than the
+  ``p + 3`` parameters: with as many, the model passes through every point and the chi-square
+  measures only the repeats' scatter.
+
+The direction of a level is that of the input's last move before it, in the recorded sequence (the
+passages between levels included); a record's first level has none (its state is a nuisance
+parameter) and counts for no branch. These are upper bounds: a level approached from below whose
+step stayed inside the play sits on a horizontal path, not on the border.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Design:
+    """The distinct inputs of the scored levels on each branch."""
+
+    up: tuple            # distinct u of scored levels approached from below
+    down: tuple          # distinct u of scored levels approached from above
+
+    @property
+    def points(self) -> int:
+        return len(self.up) + len(self.down)
+
+    def max_degree(self) -> int:
+        """The highest degree of h_bar the design determines with one degree of freedom left to
+        judge the fit, at least 1 (below that nothing is judged; :meth:`undetermined` says so)."""
+        return max(1, min(len(self.up) - 1, self.points - 4))
+
+    def lack_of_fit_dof(self, degree: int) -> int:
+        """Distinct points left over after the ``degree + 3`` parameters."""
+        return self.points - (degree + 3)
+
+    def undetermined(self, degree: int) -> dict:
+        """``{parameter: reason}`` for every parameter (and ``"adequacy"``: the fit's own check) these
+        levels cannot determine with h_bar of ``degree``; each reason names the experiment that would."""
+        out = {}
+        n_up, n_dn = len(self.up), len(self.down)
+        if n_up < degree + 1:
+            why = (f"{n_up} distinct level(s) approached from below ({describe(self.up)}); hold at least "
+                   f"p + 1 = {degree + 1} distinct levels above d+ approached from below")
+            out["d_plus"] = why
+            out["h_coefficients"] = why
+        if n_dn < 2:
+            why = (f"{n_dn} distinct level(s) approached from above ({describe(self.down)}); hold at least 2 "
+                   "distinct levels below d- approached from above")
+            out["slope_down"] = why
+            out["d_minus"] = why
+        if "d_plus" in out or "d_minus" in out:
+            out["dead_band"] = "; ".join(dict.fromkeys(out[k] for k in ("d_plus", "d_minus") if k in out))
+        lof = self.lack_of_fit_dof(degree)
+        if lof < 1:
+            out["adequacy"] = (f"{self.points} distinct (level, direction) points for {degree + 3} parameters: the "
+                               "model passes through every point, so its chi-square measures only the repeats' "
+                               "scatter and cannot judge the model; hold at least one more distinct level on "
+                               "either branch")
+        return out
+
+
+def describe(values) -> str:
+    return ", ".join(f"{v:.6g}" for v in values) if values else "none"
+
+
+def design(levels) -> Design:
+    """The :class:`Design` of stage 1's levels (in recorded order, unscored ones included: they
+    carry the input's path)."""
+    up, down = set(), set()
+    last_u, last_dir = {}, {}
+    for lv in levels:
+        before = last_u.get(lv.record)
+        if before is not None and lv.u != before:
+            last_dir[lv.record] = up if lv.u > before else down
+        last_u[lv.record] = lv.u
+        if lv.scored and lv.record in last_dir:
+            last_dir[lv.record].add(lv.u)
+    return Design(tuple(sorted(up)), tuple(sorted(down)))
