@@ -19,6 +19,7 @@ import numpy as np
 from scipy import optimize, special
 
 from hwid import HwidError
+from hwid.adequacy import input_correlation, ljung_box
 from hwid.model import HWModel
 
 #: lags of the residual tests (``resid``'s default is 25; fewer on short records)
@@ -104,34 +105,6 @@ def initial_state(model: HWModel, u, y, dt: float, grid: int = 9) -> tuple[float
     return float(best[0]), float(best[1]), model.simulate(u, dt, gear=best[0], rest=best[1]).x
 
 
-def _lags(n: int) -> int:
-    return int(max(1, min(MAX_LAG, n // 4)))
-
-
-def ljung_box(residual) -> tuple[float, int]:
-    """Ljung-Box statistic of ``residual`` over :data:`MAX_LAG` lags and its degrees of freedom."""
-    e = np.asarray(residual, float) - np.mean(residual)
-    n, m = e.size, _lags(e.size)
-    c0 = float(e @ e)
-    if c0 == 0:
-        return 0.0, m
-    r = np.array([float(e[k:] @ e[:-k]) / c0 for k in range(1, m + 1)])
-    return float(n * (n + 2) * np.sum(r * r / (n - np.arange(1, m + 1)))), m
-
-
-def input_correlation(residual, u) -> tuple[float, int]:
-    """``n sum_k rho_eu(k)^2`` over lags ``k = 0 .. MAX_LAG-1`` (residual against past inputs),
-    chi-square with that many degrees of freedom when the two are uncorrelated."""
-    e = np.asarray(residual, float) - np.mean(residual)
-    x = np.asarray(u, float) - np.mean(u)
-    n, m = e.size, _lags(e.size)
-    scale = np.sqrt(float(e @ e) * float(x @ x))
-    if scale == 0:
-        return 0.0, m
-    rho = np.array([float(e[k:] @ x[:n - k]) / scale for k in range(m)])
-    return float(n * np.sum(rho * rho)), m
-
-
 def compare_records(model: HWModel, records, noise_floor: float | None = None,
                     model_info: dict | None = None) -> tuple[CompareResult, dict]:
     """Compare ``model`` with every record; returns the result and ``{name: y_hat}``."""
@@ -144,8 +117,8 @@ def compare_records(model: HWModel, records, noise_floor: float | None = None,
     for rec in records:
         gear, rest, y_hat = initial_state(model, rec.u, rec.y, rec.dt)
         residual = rec.y - y_hat
-        qw, mw = ljung_box(residual)
-        qi, mi = input_correlation(residual, rec.u)
+        qw, mw = ljung_box(residual, MAX_LAG)
+        qi, mi = input_correlation(residual, rec.u, MAX_LAG)
         q_white, dof_white, q_input, dof_input = q_white + qw, dof_white + mw, q_input + qi, dof_input + mi
         sims[rec.name] = y_hat
         ys.append(rec.y)
