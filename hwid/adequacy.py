@@ -385,34 +385,47 @@ def _bound(n: int, floor: NoiseFloor, alpha: float) -> float:
 def assess(model, records, held_out=(), floor: NoiseFloor | None = None, starts: dict | None = None,
            alpha: float = ALPHA) -> Adequacy:
     """Whether ``model`` (an :class:`hwid.model.HWModel`) explains ``records`` (and ``held_out``)
-    down to the noise floor.
+    down to the noise floor: the model's free run on each record (:func:`_scored`), judged by
+    :func:`judge`.
 
     ``starts``: ``{record name: {"gear", "rest"}}`` as the whole fit estimates them; records without
-    one are scored after a burn-in (:func:`_scored`). ``floor`` None: :func:`estimate_floor` on all
-    records. Verdict ``misfit`` when the free run is not finite, when it misses by more than the
-    output's own spread, or when the worst RMS over the floor exceeds its ``1 - alpha`` bound
-    (:func:`_bound`, ``alpha`` split between the fit and held-out records); ``undetermined`` with
-    fewer than :data:`MIN_SCORED` scored samples or an undetermined floor; else ``adequate``."""
+    one are scored after a burn-in of 1.5 settling times and the first fifth. ``floor`` None:
+    :func:`estimate_floor` on all records."""
     records, held_out = list(records), list(held_out)
     if floor is None:
         floor = estimate_floor(records + held_out)
     settle = settling_time(model)
     fit, held = _scored(model, records, starts, settle), _scored(model, held_out, starts, settle)
+    step = max(1, int(settle / (SAMPLES_PER_SETTLING * records[0].dt))) if records and np.isfinite(settle) else 1
+    return judge(fit, floor, held, step, alpha)
+
+
+def judge(scored, floor: NoiseFloor, held_out=(), step: int = 1, alpha: float = ALPHA) -> Adequacy:
+    """The verdict on a model's residuals: ``scored`` and ``held_out`` hold ``(residual, input,
+    output)`` per record on its scored samples; ``step`` decimates the residual for the residual
+    tests (about :data:`SAMPLES_PER_SETTLING` samples per settling time).
+
+    ``misfit`` when a residual is not finite (the free run diverges), when the RMS exceeds the
+    output's own spread (worse than the output's mean), or when the worst RMS over the floor exceeds
+    its ``1 - alpha`` bound (:func:`_bound`, ``alpha`` split between the fit and held-out records);
+    ``undetermined`` with fewer than :data:`MIN_SCORED` scored samples or an undetermined floor;
+    else ``adequate``."""
+    fit, held = list(scored), list(held_out)
     rms_fit, rms_held = _rms(fit), _rms(held)
     rms_fit = float("nan") if rms_fit is None else rms_fit
-    scored = sum(s[0].size for s in fit + held)
-    step = max(1, int(settle / (SAMPLES_PER_SETTLING * records[0].dt))) if records and np.isfinite(settle) else 1
+    n_scored = sum(s[0].size for s in fit + held)
     white_p, input_p = _residual_tests(fit + held, step)
     parts = [(rms_fit, fit, "its own records")] + ([(rms_held, held, "the held-out records")] if held else [])
     ratio = max(r for r, _, _ in parts) / floor.sigma
     spread = _spread([s[2] for s in fit + held])
 
     def result(verdict: str, reason: str, bound: float | None = None) -> Adequacy:
-        return Adequacy(verdict, rms_fit, rms_held, floor, float(ratio), white_p, input_p, reason, int(scored), bound)
+        return Adequacy(verdict, rms_fit, rms_held, floor, float(ratio), white_p, input_p, reason, int(n_scored),
+                        bound)
 
-    if scored < MIN_SCORED:
-        return result("undetermined", f"only {scored} scored samples (at least {MIN_SCORED} are needed to judge the "
-                                      "model)")
+    if n_scored < MIN_SCORED:
+        return result("undetermined", f"only {n_scored} scored samples (at least {MIN_SCORED} are needed to judge "
+                                      "the model)")
     worst = max(parts, key=lambda p: p[0] if np.isfinite(p[0]) else np.inf)
     if not np.isfinite(worst[0]):
         return result("misfit", f"the model's free run on {worst[2]} is not finite: it diverges")

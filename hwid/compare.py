@@ -6,7 +6,10 @@ inside the play at the first sample and the level at which G is at rest (a recor
 the rig was left, which the model cannot know). Then, per experiment and over all of them:
 
 * the fit in percent, ``100 (1 - ||y - y_hat|| / ||y - mean(y)||)`` (NRMSE fit of ``compare``);
-* the RMS error, and the RMS error over the noise floor where the floor is known;
+* the RMS error, and the RMS error over the noise floor: a simulated plant's own noise, or for
+  recorded data the floor estimated from the data alone (:func:`hwid.adequacy.estimate_floor`);
+* the model's adequacy (:func:`hwid.adequacy.assess`, from the estimated initial states): ``misfit``
+  where the RMS exceeds the floor by more than sampling variability allows;
 * residual tests (``resid``): whiteness (Ljung-Box on the residual's autocorrelation) and
   correlation with past inputs (the cross-correlation's chi-square statistic), with their p-values.
 """
@@ -19,6 +22,7 @@ import numpy as np
 from scipy import optimize, special
 
 from hwid import HwidError
+from hwid import adequacy
 from hwid.adequacy import input_correlation, ljung_box
 from hwid.model import HWModel
 
@@ -44,7 +48,8 @@ class ExperimentFit:
 class CompareResult:
     """The comparison over all experiments; ``to_dict()`` is the ``--json`` output (fixed keys:
     ``fit_percent``, ``rms``, ``experiments`` [``name``, ``fit_percent``, ``rms``, ``samples``],
-    ``residual`` [``whiteness_p``, ``input_correlation_p``])."""
+    ``residual`` [``whiteness_p``, ``input_correlation_p``], ``adequacy``
+    (:meth:`hwid.adequacy.Adequacy.to_dict`, or None))."""
 
     fit_percent: float
     rms: float
@@ -53,6 +58,7 @@ class CompareResult:
     whiteness_p: float
     input_correlation_p: float
     model: dict
+    adequacy: adequacy.Adequacy | None = None
 
     @property
     def rms_over_floor(self) -> float | None:
@@ -63,7 +69,7 @@ class CompareResult:
                 "rms_over_floor": self.rms_over_floor,
                 "experiments": [asdict(e) for e in self.experiments],
                 "residual": {"whiteness_p": self.whiteness_p, "input_correlation_p": self.input_correlation_p},
-                "model": self.model}
+                "model": self.model, "adequacy": None if self.adequacy is None else self.adequacy.to_dict()}
 
 
 def fit_percent(y, y_hat) -> float:
@@ -107,7 +113,9 @@ def initial_state(model: HWModel, u, y, dt: float, grid: int = 9) -> tuple[float
 
 def compare_records(model: HWModel, records, noise_floor: float | None = None,
                     model_info: dict | None = None) -> tuple[CompareResult, dict]:
-    """Compare ``model`` with every record; returns the result and ``{name: y_hat}``."""
+    """Compare ``model`` with every record; returns the result and ``{name: y_hat}``. ``noise_floor``
+    None: estimated from the records (:func:`hwid.adequacy.estimate_floor`; left None where the data
+    cannot determine it)."""
     if not records:
         raise HwidError("compare: the config yields no experiments to compare with")
     fits, sims = [], {}
@@ -127,10 +135,22 @@ def compare_records(model: HWModel, records, noise_floor: float | None = None,
                                   int(rec.y.size), gear, rest, float(special.chdtrc(mw, qw)),
                                   float(special.chdtrc(mi, qi))))
     y_all, yh_all = np.concatenate(ys), np.concatenate(yhs)
+    floor = floor_of(records, noise_floor)
+    starts = {e.name: {"gear": e.gear, "rest": e.rest} for e in fits}
+    judged = adequacy.assess(model, records, floor=floor, starts=starts)
     result = CompareResult(fit_percent(y_all, yh_all), float(np.sqrt(np.mean((y_all - yh_all) ** 2))),
-                           noise_floor, tuple(fits), float(special.chdtrc(dof_white, q_white)),
-                           float(special.chdtrc(dof_input, q_input)), dict(model_info or {}))
+                           floor.sigma if floor.determined else None, tuple(fits),
+                           float(special.chdtrc(dof_white, q_white)), float(special.chdtrc(dof_input, q_input)),
+                           dict(model_info or {}), judged)
     return result, sims
+
+
+def floor_of(records, noise_floor: float | None) -> adequacy.NoiseFloor:
+    """The noise floor the model is judged against: ``noise_floor`` where it is known (a simulated
+    plant's noise), else estimated from the records alone."""
+    if noise_floor:
+        return adequacy.NoiseFloor(float(noise_floor), "known", 0.0, reason="the simulated plant's own noise")
+    return adequacy.estimate_floor(records)
 
 
 def experiments_of(cfg, out_dir: Path):
@@ -163,4 +183,8 @@ def compare(model_spec, cfg, out_dir, json_path=None, echo=print) -> CompareResu
     tail = "" if result.rms_over_floor is None else f" = {result.rms_over_floor:.3g} x the noise floor"
     echo(f"overall: fit {result.fit_percent:.2f} %, rms {result.rms:.4g}{tail}; residual whiteness p = "
          f"{result.whiteness_p:.3g}, input correlation p = {result.input_correlation_p:.3g}")
+    if result.adequacy is not None:
+        floor = result.adequacy.floor
+        echo(f"noise floor {floor.sigma:.4g} ({floor.source}: {floor.reason})")
+        echo(f"adequacy: {result.adequacy.verdict}: {result.adequacy.reason}")
     return result
