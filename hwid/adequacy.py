@@ -356,7 +356,8 @@ def _residual_tests(scored, step: int) -> tuple[float | None, float | None]:
     qw = qi = 0.0
     mw = mi = 0
     for e, u, _ in scored:
-        e, u = e[::step], u[::step]
+        k = max(1, min(step, e.size // (5 * LAGS)))      # a slow model's long records still get their lags
+        e, u = e[::k], u[::k]
         if e.size < 4 * LAGS or not np.all(np.isfinite(e)):
             continue
         a, m = ljung_box(e, LAGS)
@@ -383,24 +384,25 @@ def _bound(n: int, floor: NoiseFloor, alpha: float) -> float:
 
 
 def assess(model, records, held_out=(), floor: NoiseFloor | None = None, starts: dict | None = None,
-           alpha: float = ALPHA) -> Adequacy:
+           alpha: float = ALPHA, label: str = "its own records") -> Adequacy:
     """Whether ``model`` (an :class:`hwid.model.HWModel`) explains ``records`` (and ``held_out``)
     down to the noise floor: the model's free run on each record (:func:`_scored`), judged by
     :func:`judge`.
 
     ``starts``: ``{record name: {"gear", "rest"}}`` as the whole fit estimates them; records without
     one are scored after a burn-in of 1.5 settling times and the first fifth. ``floor`` None:
-    :func:`estimate_floor` on all records."""
+    :func:`estimate_floor` on all records. ``label``: what ``records`` are, for the reason."""
     records, held_out = list(records), list(held_out)
     if floor is None:
         floor = estimate_floor(records + held_out)
     settle = settling_time(model)
     fit, held = _scored(model, records, starts, settle), _scored(model, held_out, starts, settle)
     step = max(1, int(settle / (SAMPLES_PER_SETTLING * records[0].dt))) if records and np.isfinite(settle) else 1
-    return judge(fit, floor, held, step, alpha)
+    return judge(fit, floor, held, step, alpha, label)
 
 
-def judge(scored, floor: NoiseFloor, held_out=(), step: int = 1, alpha: float = ALPHA) -> Adequacy:
+def judge(scored, floor: NoiseFloor, held_out=(), step: int = 1, alpha: float = ALPHA,
+          label: str = "its own records") -> Adequacy:
     """The verdict on a model's residuals: ``scored`` and ``held_out`` hold ``(residual, input,
     output)`` per record on its scored samples; ``step`` decimates the residual for the residual
     tests (about :data:`SAMPLES_PER_SETTLING` samples per settling time).
@@ -415,7 +417,7 @@ def judge(scored, floor: NoiseFloor, held_out=(), step: int = 1, alpha: float = 
     rms_fit = float("nan") if rms_fit is None else rms_fit
     n_scored = sum(s[0].size for s in fit + held)
     white_p, input_p = _residual_tests(fit + held, step)
-    parts = [(rms_fit, fit, "its own records")] + ([(rms_held, held, "the held-out records")] if held else [])
+    parts = [(rms_fit, fit, label)] + ([(rms_held, held, "the held-out records")] if held else [])
     ratio = max(r for r, _, _ in parts) / floor.sigma
     spread = _spread([s[2] for s in fit + held])
 

@@ -137,7 +137,7 @@ def compare_records(model: HWModel, records, noise_floor: float | None = None,
     y_all, yh_all = np.concatenate(ys), np.concatenate(yhs)
     floor = floor_of(records, noise_floor)
     starts = {e.name: {"gear": e.gear, "rest": e.rest} for e in fits}
-    judged = adequacy.assess(model, records, floor=floor, starts=starts)
+    judged = adequacy.assess(model, records, floor=floor, starts=starts, label="the records")
     result = CompareResult(fit_percent(y_all, yh_all), float(np.sqrt(np.mean((y_all - yh_all) ** 2))),
                            floor.sigma if floor.determined else None, tuple(fits),
                            float(special.chdtrc(dof_white, q_white)), float(special.chdtrc(dof_input, q_input)),

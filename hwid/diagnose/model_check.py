@@ -43,7 +43,7 @@ def model_adequacy(ctx: Context) -> adequacy.Adequacy | None:
         pre = int((getattr(r, "attrs", None) or {}).get("pre", 0) or 0)   # a start estimated before the log
         own.append(replace(r, u=u[pre:], y=y[pre:]))
     step = max(1, int(val.design.settle_s / (adequacy.SAMPLES_PER_SETTLING * val.design.dt)))
-    return adequacy.judge(scored, adequacy.estimate_floor(own), step=step)
+    return adequacy.judge(scored, adequacy.estimate_floor(own), step=step, label="the validation records")
 
 
 def fails_own_records(ctx: Context, min_ratio: float) -> adequacy.Adequacy | None:
