@@ -34,7 +34,7 @@ def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effe
     else:
         sim_model, origin = logs.identify_from_logs(cfg, logs.fit_pieces(parts), out, echo)
     seconds_model = time.perf_counter() - t_start
-    val, found = validation_from_logs(cfg, records, parts, sim_model, echo)
+    val, found = validation_from_logs(cfg, records, parts, sim_model, echo, model is None)
     floor, source, pairs = logs.floor_from_logs(val.exps, val.records, val.x_model, sim_model.input, val.design)
     floor, source = bounded_floor(floor, source, records)
     echo(f"records split by {how}: fit {', '.join(val.exps[i].name for i in val.fit_idx)}; validation "
@@ -55,7 +55,7 @@ def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effe
     return conclude(ctx)
 
 
-def validation_from_logs(cfg, records, parts, sim_model, echo) -> tuple[Validation, dict]:
+def validation_from_logs(cfg, records, parts, sim_model, echo, identified: bool) -> tuple[Validation, dict]:
     """The log's fit and validation parts as the diagnosis's experiments, each record's start found
     (:func:`hwid.diagnose.logs.with_starts`), and the model simulated on them; returns the
     :class:`Validation` and the starts found."""
@@ -64,7 +64,7 @@ def validation_from_logs(cfg, records, parts, sim_model, echo) -> tuple[Validati
     settle_s = logs.step_settling_time(sim_model)
     design = experiments.Design(dt, float(u_all.min()), float(u_all.max()), 0.0, settle_s,
                                 experiments.bandwidth(sim_model, dt), int(cfg.seed))
-    scored_parts, found = logs.with_starts(parts, sim_model, dt, settle_s, echo)
+    scored_parts, found = logs.with_starts(parts, sim_model, dt, settle_s, echo, identified=identified)
     exps, recs = logs.split(scored_parts, design)
     fit_idx = [i for i, e in enumerate(exps) if e.role == "fit"]
     val_idx = [i for i, e in enumerate(exps) if e.role == "validation"]
@@ -85,8 +85,8 @@ def validation_from_logs(cfg, records, parts, sim_model, echo) -> tuple[Validati
 
 def bounded_floor(floor, source: str, records) -> tuple:
     """The diagnosis's noise floor held to what the data alone give (:func:`hwid.adequacy.estimate_floor`
-    on the records): a floor above that estimate's 99 % sampling interval, or above the output's own
-    spread, came from a model's residual that carries more than noise (a model whose free run
+    on the records): a floor above that estimate's 99 % sampling interval (where the data determine
+    it), or above the output's own spread, came from a model's residual that carries more than noise (a model whose free run
     explodes gave a floor of 35 kip on a force that swings 3 kip); the data's estimate is used
     instead, and the source says so. Returns ``(floor, source)``."""
     try:
@@ -95,10 +95,10 @@ def bounded_floor(floor, source: str, records) -> tuple:
         return floor, source
     spread = adequacy.output_spread(records)
     interval = data.interval(0.99)
-    upper = interval[1] if interval is not None else data.sigma
-    if floor.sigma <= min(upper, spread) or not data.sigma > 0:
+    limit = min(spread, interval[1]) if data.determined and interval is not None else spread
+    if floor.sigma <= limit or not limit > 0:
         return floor, source
-    sigma = float(min(data.sigma, spread))
+    sigma = float(min(data.sigma, spread)) if data.determined else float(spread)
     surrogate = floor.surrogate * (sigma / floor.sigma) if np.size(floor.surrogate) else floor.surrogate
     note = (f" gave {floor.sigma:.4g}, above what the data alone give ({data.sigma:.4g} from the {data.source}; "
             f"output spread {spread:.4g}): {sigma:.4g} used instead")

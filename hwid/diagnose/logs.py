@@ -132,15 +132,16 @@ def plan(records) -> tuple[list[tuple], str]:
     return out, "blocks"
 
 
-def with_starts(parts, model, dt: float, settle_s: float, echo) -> tuple[list, dict]:
+def with_starts(parts, model, dt: float, settle_s: float, echo, identified: bool = False) -> tuple[list, dict]:
     """:func:`plan`'s parts as ``(record, role, samples, scored)``, each record's unknown start
     dealt with: burnt in (``scored`` false up to :func:`known_from` with 1.5 settling times); or,
     where the burn-in would leave the records no fit or no validation part of :data:`MIN_SCORED`
-    samples (a slow plant, short records, an input that never spans the model's play), estimated
-    through ``model`` and put before every record as :data:`hwid.diagnose.starts.PRE` samples that
-    are never scored (:mod:`hwid.diagnose.starts`).
-    Returns the parts and the estimated starts by record name (``level``, ``gear``, and the rms
-    of the record's opening from the default start and from the estimated one).
+    samples (a slow plant, short records, an input that never spans the play of a model
+    ``identified`` from the log), estimated through ``model`` and put before every record as
+    :data:`hwid.diagnose.starts.PRE` samples that are never scored (:mod:`hwid.diagnose.starts`). A
+    given model whose play no record spans is an error (exit 2). Returns the parts and the estimated
+    starts by record name (``level``, ``gear``, and the rms of the record's opening from the default
+    start and from the estimated one).
 
     The burn-in is preferred where it is affordable: an estimated start is fitted by the model
     without the effect, and an effect that shows in a record's opening would be partly absorbed
@@ -157,10 +158,13 @@ def with_starts(parts, model, dt: float, settle_s: float, echo) -> tuple[list, d
     if all(any(p[3].sum() >= MIN_SCORED for p in out if p[1] == role) for role in ("fit", "validation")):
         return out, {}
     if all(known_from(r.u, model.input, 0) >= r.u.size for r, _, _, _ in out):
-        # a play wider than everything the log drives: the model's own fit is in doubt, which the
-        # diagnosis's adequacy check on its records reports (hwid.diagnose.model_check)
-        echo("no record's input spans the model's play (nothing in the log moves the gear from one border to the "
-             "other): each record's start is fitted through the model over the whole record")
+        if not identified:
+            raise HwidError("diagnose: no record's input spans the model's play: nothing in the log moves the gear "
+                            "from one border to the other, so nothing tells where it is; record a run that does")
+        # a play identified wider than everything the log drives: the data did not determine it, and
+        # the diagnosis's check of the model on its records reports how far it is off (model_check)
+        echo("no record's input spans the identified model's play (the log cannot have determined it): each "
+             "record's start is fitted through the model over the whole record")
     settle = max(int(round(settle_s / dt)), 1)
     new, found = {}, {}
     for r, _, _, _ in out:

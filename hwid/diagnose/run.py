@@ -5,12 +5,13 @@ the effects fitted and ranked, the verdict and its checks); a recorded plant's d
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 
 import numpy as np
 
-from hwid import protocols
+from hwid import adequacy, protocols
 from hwid.diagnose import experiments, gap
 from hwid.diagnose.conclude import conclude
 from hwid.diagnose.context import Context, Validation, drift_additivity, scale_of, sine_band
@@ -107,10 +108,14 @@ def run_validation(cfg, plant, sim_model, origin, identified: bool, echo) -> Val
 
 
 def noise_floor(val: Validation):
-    """The noise floor from the repeated experiments, and the repeat pairs ``(y, y_repeat, mask)``."""
+    """The noise floor from the repeated experiments, and the repeat pairs ``(y, y_repeat, mask)``;
+    never above the output's own spread (a plant that does not repeat itself at all)."""
     by_name = {e.name: (e, r) for e, r in zip(val.exps, val.records)}
     pairs = [(r.y, by_name[e.repeat_of][1].y, e.mask) for e, r in zip(val.exps, val.records) if e.repeat_of]
     floor = gap.noise_floor(pairs, int(round(2 * val.design.settle_s / val.design.dt)), val.scale.y_obs_width)
+    spread = adequacy.output_spread([r for r in val.records if getattr(r, "y", None) is not None])
+    if 0 < spread < floor.sigma:
+        floor = dataclasses.replace(floor, sigma=spread)
     return floor, pairs
 
 
