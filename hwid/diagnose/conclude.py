@@ -18,8 +18,8 @@ from hwid.diagnose.context import Context, Validation, sine_band
 from hwid.diagnose.effects import CATALOGUE, catalogue
 from hwid.diagnose.log_drift import (drift_from_residual, drift_leaves_little, drift_takes_the_excess,
                                      input_predicts_it, repeats_under_best)
-from hwid.diagnose.model_check import (adequacy_tail, adequacy_where, fails_own_records, model_adequacy,
-                                      not_none_from_a_misfit)
+from hwid.diagnose.model_check import (adequacy_tail, adequacy_where, describe_misfit, fails_own_records,
+                                      model_adequacy, not_none_from_a_misfit)
 from hwid.diagnose.modelsim import ModelSim
 from hwid.diagnose.verdict import (Candidate, alternative_baseline, eligible, indistinguishable, named_from_rails,
                                     refloor, simplest_in_group)
@@ -216,7 +216,7 @@ def gap_test_step(ctx: Context) -> Gaps:
     if ctx.model_adequacy is None:
         ctx.model_adequacy, ctx.adequacy_on = model_adequacy(ctx), adequacy_where(ctx)
     if ctx.model_adequacy is not None and ctx.model_adequacy.misfit:
-        ctx.echo(f"the model is not adequate on {adequacy_where(ctx)}: {ctx.model_adequacy.reason}")
+        ctx.echo(describe_misfit(ctx))
     if identified:
         gaps.id_err = identification_error(ctx.sim_model, ctx.origin.pop("records", []), val.design.dt,
                                            val.design.settle_s, floor.sigma, ctx.origin.pop("starts", None))

@@ -70,6 +70,14 @@ def not_none_from_a_misfit(ctx: Context, verdict, why: str, min_ratio: float) ->
     return "unexplained", why
 
 
+def describe_misfit(ctx: Context) -> str:
+    """One line for a model that is a misfit on its records: by how much, against which floor."""
+    ad = ctx.model_adequacy
+    rms = ad.rms_fit if ad.rms_held_out is None else max(ad.rms_fit, ad.rms_held_out)
+    return (f"the model is not adequate on {adequacy_where(ctx)}: RMS {rms:.4g} = {ad.ratio:.3g} x the floor "
+            f"{ad.floor.sigma:.4g} ({ad.floor.source}, from the data alone): {ad.reason}")
+
+
 def adequacy_tail(ctx: Context) -> str:
     """The verdict line's tail: the model's own fit on its records."""
     ad = ctx.model_adequacy
