@@ -17,7 +17,7 @@ from hwid import config
 from hwid.diagnose import diagnose, from_logs
 from hwid.diagnose import logs as diag_logs
 
-INFLATE = 50.0      # the floor a model's residual gave on the damper was ~10x the force's spread
+INFLATE = 2.0       # times the output's spread: the floor a model's residual gave on the damper was ~20x
 
 
 def _wrong_model(tmp_path) -> str:
@@ -29,13 +29,14 @@ def _wrong_model(tmp_path) -> str:
 
 
 def _inflated_floor(monkeypatch):
-    """floor_from_logs returning INFLATE times its floor: what a model whose residual carries more
-    than noise gives (the damper's exploding free run)."""
+    """floor_from_logs returning INFLATE times the output's spread: what a model whose residual
+    carries more than noise gives (the damper's exploding free run)."""
+    from hwid.adequacy import output_spread
     original = diag_logs.floor_from_logs
 
-    def inflated(*args):
-        floor, source, pairs = original(*args)
-        return replace(floor, sigma=INFLATE * floor.sigma), source, pairs
+    def inflated(exps, recs, *args):
+        floor, source, pairs = original(exps, recs, *args)
+        return replace(floor, sigma=INFLATE * output_spread(recs)), source, pairs
 
     monkeypatch.setattr(diag_logs, "floor_from_logs", inflated)
 
@@ -61,8 +62,8 @@ def test_a_misfit_model_is_never_none_where_the_floor_swallows_its_gap(tmp_path,
 
 
 def test_a_floor_above_the_datas_own_is_replaced(tmp_path, monkeypatch):
-    """With the inflated floor and bounded_floor on: the floor used is the data's, which covers the
-    rig's noise, never above the output's spread, and the gap is then more than noise."""
+    """With the floor above the output's spread and bounded_floor on: the floor used is the data's,
+    which covers the rig's noise, and the gap is then more than noise."""
     _inflated_floor(monkeypatch)
     cfg = config.load(logs.write_lab(tmp_path, seed=4))
     s = diagnose(cfg, tmp_path / "out", model=_wrong_model(tmp_path), echo=lambda *a: None)
