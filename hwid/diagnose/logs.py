@@ -15,7 +15,7 @@ No new experiment can be run, so the diagnosis works with what the records hold:
 3. **Noise floor** (:mod:`hwid.diagnose.gap`): from repeated experiments (identical inputs) where
    the records hold them; else from the settled parts of held inputs; else from the high-frequency
    part of the model's residual; never below the output's resolution ``q / sqrt(12)``, never above
-   what the data alone give (:func:`hwid.diagnose.from_logs.bounded_floor`). Which one is said in
+   the output's own spread (:func:`hwid.diagnose.from_logs.bounded_floor`). Which one is said in
    the JSON (``data.noise_source``).
 4. The effects fitted and ranked as for a live rig (:func:`hwid.diagnose.conclude.conclude`, from
    :func:`hwid.diagnose.from_logs.diagnose_recorded`), with the
