@@ -6,7 +6,10 @@ inside the play at the first sample and the level at which G is at rest (a recor
 the rig was left, which the model cannot know). Then, per experiment and over all of them:
 
 * the fit in percent, ``100 (1 - ||y - y_hat|| / ||y - mean(y)||)`` (NRMSE fit of ``compare``);
-* the RMS error, and the RMS error over the noise floor where the floor is known;
+* the RMS error, and the RMS error over the noise floor: a simulated plant's own noise, or for
+  recorded data the floor estimated from the data alone (:func:`hwid.adequacy.estimate_floor`);
+* the model's adequacy (:func:`hwid.adequacy.assess`, from the estimated initial states): ``misfit``
+  where the RMS exceeds the floor by more than sampling variability allows;
 * residual tests (``resid``): whiteness (Ljung-Box on the residual's autocorrelation) and
   correlation with past inputs (the cross-correlation's chi-square statistic), with their p-values.
 """
@@ -19,6 +22,8 @@ import numpy as np
 from scipy import optimize, special
 
 from hwid import HwidError
+from hwid import adequacy
+from hwid.adequacy import input_correlation, ljung_box
 from hwid.model import HWModel
 
 #: lags of the residual tests (``resid``'s default is 25; fewer on short records)
@@ -43,7 +48,8 @@ class ExperimentFit:
 class CompareResult:
     """The comparison over all experiments; ``to_dict()`` is the ``--json`` output (fixed keys:
     ``fit_percent``, ``rms``, ``experiments`` [``name``, ``fit_percent``, ``rms``, ``samples``],
-    ``residual`` [``whiteness_p``, ``input_correlation_p``])."""
+    ``residual`` [``whiteness_p``, ``input_correlation_p``], ``adequacy``
+    (:meth:`hwid.adequacy.Adequacy.to_dict`, or None))."""
 
     fit_percent: float
     rms: float
@@ -52,6 +58,7 @@ class CompareResult:
     whiteness_p: float
     input_correlation_p: float
     model: dict
+    adequacy: adequacy.Adequacy | None = None
     figures: tuple[str, ...] = ()      # the figures written, relative to the output folder
 
     @property
@@ -63,7 +70,8 @@ class CompareResult:
                 "rms_over_floor": self.rms_over_floor,
                 "experiments": [asdict(e) for e in self.experiments],
                 "residual": {"whiteness_p": self.whiteness_p, "input_correlation_p": self.input_correlation_p},
-                "model": self.model, "figures": list(self.figures)}
+                "model": self.model, "adequacy": None if self.adequacy is None else self.adequacy.to_dict(),
+                "figures": list(self.figures)}
 
 
 def fit_percent(y, y_hat) -> float:
@@ -105,37 +113,11 @@ def initial_state(model: HWModel, u, y, dt: float, grid: int = 9) -> tuple[float
     return float(best[0]), float(best[1]), model.simulate(u, dt, gear=best[0], rest=best[1]).x
 
 
-def _lags(n: int) -> int:
-    return int(max(1, min(MAX_LAG, n // 4)))
-
-
-def ljung_box(residual) -> tuple[float, int]:
-    """Ljung-Box statistic of ``residual`` over :data:`MAX_LAG` lags and its degrees of freedom."""
-    e = np.asarray(residual, float) - np.mean(residual)
-    n, m = e.size, _lags(e.size)
-    c0 = float(e @ e)
-    if c0 == 0:
-        return 0.0, m
-    r = np.array([float(e[k:] @ e[:-k]) / c0 for k in range(1, m + 1)])
-    return float(n * (n + 2) * np.sum(r * r / (n - np.arange(1, m + 1)))), m
-
-
-def input_correlation(residual, u) -> tuple[float, int]:
-    """``n sum_k rho_eu(k)^2`` over lags ``k = 0 .. MAX_LAG-1`` (residual against past inputs),
-    chi-square with that many degrees of freedom when the two are uncorrelated."""
-    e = np.asarray(residual, float) - np.mean(residual)
-    x = np.asarray(u, float) - np.mean(u)
-    n, m = e.size, _lags(e.size)
-    scale = np.sqrt(float(e @ e) * float(x @ x))
-    if scale == 0:
-        return 0.0, m
-    rho = np.array([float(e[k:] @ x[:n - k]) / scale for k in range(m)])
-    return float(n * np.sum(rho * rho)), m
-
-
 def compare_records(model: HWModel, records, noise_floor: float | None = None,
                     model_info: dict | None = None) -> tuple[CompareResult, dict]:
-    """Compare ``model`` with every record; returns the result and ``{name: y_hat}``."""
+    """Compare ``model`` with every record; returns the result and ``{name: y_hat}``. ``noise_floor``
+    None: estimated from the records (:func:`hwid.adequacy.estimate_floor`; left None where the data
+    cannot determine it)."""
     if not records:
         raise HwidError("compare: the config yields no experiments to compare with")
     fits, sims = [], {}
@@ -145,8 +127,8 @@ def compare_records(model: HWModel, records, noise_floor: float | None = None,
     for rec in records:
         gear, rest, y_hat = initial_state(model, rec.u, rec.y, rec.dt)
         residual = rec.y - y_hat
-        qw, mw = ljung_box(residual)
-        qi, mi = input_correlation(residual, rec.u)
+        qw, mw = ljung_box(residual, MAX_LAG)
+        qi, mi = input_correlation(residual, rec.u, MAX_LAG)
         q_white, dof_white, q_input, dof_input = q_white + qw, dof_white + mw, q_input + qi, dof_input + mi
         sims[rec.name] = y_hat
         ys.append(rec.y)
@@ -155,10 +137,22 @@ def compare_records(model: HWModel, records, noise_floor: float | None = None,
                                   int(rec.y.size), gear, rest, float(special.chdtrc(mw, qw)),
                                   float(special.chdtrc(mi, qi))))
     y_all, yh_all = np.concatenate(ys), np.concatenate(yhs)
+    floor = floor_of(records, noise_floor)
+    starts = {e.name: {"gear": e.gear, "rest": e.rest} for e in fits}
+    judged = adequacy.assess(model, records, floor=floor, starts=starts, label="the records")
     result = CompareResult(fit_percent(y_all, yh_all), float(np.sqrt(np.mean((y_all - yh_all) ** 2))),
-                           noise_floor, tuple(fits), float(special.chdtrc(dof_white, q_white)),
-                           float(special.chdtrc(dof_input, q_input)), dict(model_info or {}))
+                           floor.sigma if floor.determined else None, tuple(fits),
+                           float(special.chdtrc(dof_white, q_white)), float(special.chdtrc(dof_input, q_input)),
+                           dict(model_info or {}), judged)
     return result, sims
+
+
+def floor_of(records, noise_floor: float | None) -> adequacy.NoiseFloor:
+    """The noise floor the model is judged against: ``noise_floor`` where it is known (a simulated
+    plant's noise), else estimated from the records alone."""
+    if noise_floor:
+        return adequacy.NoiseFloor(float(noise_floor), "known", 0.0, reason="the simulated plant's own noise")
+    return adequacy.estimate_floor(records)
 
 
 def experiments_of(cfg, out_dir: Path):
@@ -193,4 +187,8 @@ def compare(model_spec, cfg, out_dir, json_path=None, echo=print) -> CompareResu
     tail = "" if result.rms_over_floor is None else f" = {result.rms_over_floor:.3g} x the noise floor"
     echo(f"overall: fit {result.fit_percent:.2f} %, rms {result.rms:.4g}{tail}; residual whiteness p = "
          f"{result.whiteness_p:.3g}, input correlation p = {result.input_correlation_p:.3g}")
+    if result.adequacy is not None:
+        floor = result.adequacy.floor
+        echo(f"noise floor {floor.sigma:.4g} ({floor.source}: {floor.reason})")
+        echo(f"adequacy: {result.adequacy.verdict}: {result.adequacy.reason}")
     return result

@@ -88,3 +88,51 @@ def test_cli_compare_bad_model_is_one_line(tmp_path):
     p = subprocess.run([sys.executable, "-m", "hwid", "compare", str(tmp_path / "nope"), str(path), "--out",
                         str(tmp_path / "out")], capture_output=True, text=True, timeout=120)
     assert p.returncode == 2 and p.stderr.count("\n") == 1 and "nope" in p.stderr
+
+
+def _lab_and_models(tmp_path, d_plus: float):
+    """A recorded lab log of :mod:`logs`' rig, and a model YAML of that rig with ``d_plus`` for d+."""
+    import copy
+
+    import yaml
+
+    import logs
+    cfg_path = logs.write_lab(tmp_path, seed=3)
+    m = copy.deepcopy(logs.MODEL)
+    m["plant"]["input_nonlinearity"]["d_plus"] = d_plus
+    model_path = tmp_path / f"model_{d_plus}.yaml"
+    model_path.write_text(yaml.safe_dump(m, sort_keys=False))
+    return cfg_path, model_path
+
+
+def _cli_compare(tmp_path, model_path, cfg_path):
+    js = tmp_path / f"{model_path.stem}.json"
+    p = subprocess.run([sys.executable, "-m", "hwid", "compare", str(model_path), str(cfg_path), "--out",
+                        str(tmp_path / model_path.stem), "--json", str(js)], capture_output=True, text=True,
+                       timeout=300)
+    assert p.returncode == 0, p.stderr
+    return json.loads(js.read_text()), p.stdout
+
+
+def test_cli_compare_recorded_floor_and_adequacy(tmp_path):
+    """On a recorded log of a known rig (noise s.d. 0.02): the floor estimated from the data alone
+    covers 0.02 in its 99 % interval, the true model is adequate at about 1x that floor, and a model
+    whose d+ is 20 % off is called a misfit in the JSON and in the summary, by the same numbers."""
+    import logs
+    cfg_path, true_path = _lab_and_models(tmp_path, logs.F["d_plus"])
+    d, out = _cli_compare(tmp_path, true_path, cfg_path)
+    ad = d["adequacy"]
+    assert {"fit_percent", "rms", "noise_floor", "rms_over_floor", "experiments", "residual", "model"} <= set(d)
+    lo, hi = ad["floor"]["interval"]
+    # the log's output is linearly interpolated onto the grid from jittered (+-3 %) times: its noise
+    # s.d. lies between 0.97 and 1 times the rig's
+    assert lo <= logs.SIGMA and 0.97 * logs.SIGMA <= hi, ad["floor"]
+    assert d["noise_floor"] == pytest.approx(ad["floor"]["sigma"])
+    assert d["rms_over_floor"] == pytest.approx(d["rms"] / d["noise_floor"])
+    assert ad["verdict"] == "adequate", ad["reason"]
+    assert "adequacy: adequate" in out and "misfit" not in out
+    _, wrong_path = _lab_and_models(tmp_path, 1.2 * logs.F["d_plus"])
+    d, out = _cli_compare(tmp_path, wrong_path, cfg_path)
+    assert d["adequacy"]["verdict"] == "misfit"
+    assert d["adequacy"]["ratio"] > d["adequacy"]["bound"]
+    assert "adequacy: misfit" in out

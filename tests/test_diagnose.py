@@ -337,7 +337,7 @@ def test_with_a_given_model_an_effect_that_leaves_twice_the_floor_is_not_named()
     saturation's static part, not what makes it). With a given model the bound makes the verdict
     ``unexplained``; an effect leaving the floor is still named, and with no bound (an identified
     model) the share alone decides."""
-    from hwid.diagnose.run import GIVEN_MAX_LEFT, _why_unexplained
+    from hwid.diagnose.conclude import GIVEN_MAX_LEFT, why_unexplained
     from hwid.diagnose.verdict import Candidate, eligible, explained_fraction, verdict
     sigma, before = 0.00996, 0.19843
     bound = GIVEN_MAX_LEFT * sigma
@@ -348,11 +348,11 @@ def test_with_a_given_model_an_effect_that_leaves_twice_the_floor_is_not_named()
     assert bend.explained_fraction == pytest.approx(0.85, abs=0.01)
     assert verdict([bend, clip], True, False) is bend
     assert verdict([bend, clip], True, False, max_left=bound) == "unexplained"
-    why = _why_unexplained("unexplained", [bend, clip], False, None, bound, sigma)
+    why = why_unexplained("unexplained", [bend, clip], False, None, bound, sigma)
     assert "curved_borders" in why and "3.16x" in why
     right = cand("curved_borders", 0.0102, 60000.0, 13.0)
     assert verdict([right, clip], True, False, max_left=bound) is right
-    assert _why_unexplained(right, [right, clip], False, None, bound, sigma) == ""
+    assert why_unexplained(right, [right, clip], False, None, bound, sigma) == ""
     assert not eligible(bend, False, max_left=bound) and eligible(bend, False)
 
 
@@ -364,7 +364,7 @@ def test_an_identified_model_names_an_effect_that_explains_a_quarter_and_leaves_
     and leaving 1.69x, is not (a friction is not a bend), nor a bend of 9 parameters leaving 1.22x
     (a saturation between G's lags on judged seed 8837), nor a quarter with a given model, where
     the rule does not apply."""
-    from hwid.diagnose.run import ID_PARTIAL
+    from hwid.diagnose.conclude import ID_PARTIAL
     from hwid.diagnose.verdict import Candidate, eligible, verdict
     sigma = 0.018987
     partial = (ID_PARTIAL[0], ID_PARTIAL[1] * sigma)
@@ -391,7 +391,7 @@ def test_the_second_test_names_an_effect_held_near_the_floor_that_explains_a_qua
     ratio 557 on validation), and the verdict was ``none`` for explaining less than half. A plain
     rig's best candidate (a bend, 0.12, score -39) stays below the test."""
     from hwid.diagnose.gap import NoiseFloor
-    from hwid.diagnose.run import second_test
+    from hwid.diagnose.conclude import second_test
     from hwid.diagnose.verdict import Candidate, explained_fraction
     nf = NoiseFloor(sigma=0.0100832, kappa=1.0, n=4000, slow_rms=0.0, slow_z=0.0, surrogate=np.zeros(1))
     ref = 0.0104422
@@ -410,7 +410,7 @@ def test_the_second_test_names_an_effect_held_near_the_floor_that_explains_a_qua
     assert by["likelihood_ratio"] == pytest.approx(12.1, abs=0.1) and not by["significant"]
     # with a given model, within 10 % of the noise: a judged plain rig's best (a resonance, all of a
     # gap at the floor, score 7.4) is held to GIVEN_SMALL_SCORE; a judged rate limit's (637.6) is not
-    from hwid.diagnose.run import GIVEN_SMALL_SCORE
+    from hwid.diagnose.conclude import GIVEN_SMALL_SCORE
     for score, named in ((7.4, False), (637.6, True)):
         c = Candidate("resonance", "linear", {}, 0.0100, 0.0100, 1.0, score, 2.0)
         _, by = second_test([c], 0.0101, nf, False, 11332.0, refloor_first=False, min_score=GIVEN_SMALL_SCORE)
@@ -751,7 +751,7 @@ def test_a_deterministic_effect_at_the_floor_survives_a_model_that_does_not_gene
     the residual find no structure (its smoother follows the validation output itself, a wandering
     gain's remainder too); a deterministic effect that leaves more than noise never does."""
     from hwid.diagnose.gap import NoiseFloor, gap_test
-    from hwid.diagnose.run import repairs_out_of_sample
+    from hwid.diagnose.conclude import repairs_out_of_sample
     from hwid.diagnose.verdict import Candidate, explained_fraction
     nf = NoiseFloor(sigma=0.009804, kappa=1.0, n=27450, slow_rms=0.0, slow_z=0.0, surrogate=np.zeros(1))
     before = 0.08789

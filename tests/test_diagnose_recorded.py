@@ -121,7 +121,7 @@ def test_a_gap_within_ten_per_cent_is_named_by_an_effect_that_earns_its_score(tm
     candidates of 157 judged plain rigs scored 16.9 at most), and the rate limit is named. The
     log's fit part places the rate only loosely (the fit's residual is alike from 20 to 40
     units/s: few of its samples see a 25 units/s actuator lag), so the rate is not checked."""
-    from hwid.diagnose.run import GIVEN_SMALL_SCORE
+    from hwid.diagnose.conclude import GIVEN_SMALL_SCORE
     cfg = config.load(logs.write_lab(tmp_path, "mild", rate=25.0, seed=6))
     s = diagnose(cfg, tmp_path / "out", model=logs.write_model(tmp_path), echo=_quiet)
     t = s["test"]
@@ -356,12 +356,12 @@ def test_report_says_how_the_log_was_used(rate_log):
 
 
 def _log_validation(residual, x, u=None, mask=None):
-    """A two-record log's :class:`hwid.diagnose.run.Validation`: the model's output ``x`` and the
+    """A two-record log's :class:`hwid.diagnose.context.Validation`: the model's output ``x`` and the
     measured output ``x + residual`` on both records, one fit and one validation (default input: a
     square wave; default mask: every sample)."""
     from types import SimpleNamespace
 
-    from hwid.diagnose.run import Validation
+    from hwid.diagnose.context import Validation
     u = np.sign(np.sin(0.3 * np.arange(x.size) * logs.DT)) if u is None else u
     m = np.ones(x.size, bool) if mask is None else mask
     exps = [SimpleNamespace(u=u, mask=m, variable={}) for _ in range(2)]
@@ -501,7 +501,7 @@ def test_the_real_friction_damper_is_not_named_a_catalogue_effect(tmp_path):
     friction is not a gear with play, and no catalogue effect is named. Its best candidate, a bend,
     explains about a third of the excess but leaves more than :data:`ID_PARTIAL` allows (1.69x the
     floor); the identified model generalises (validation within 4x its own records)."""
-    from hwid.diagnose.run import ID_PARTIAL
+    from hwid.diagnose.conclude import ID_PARTIAL
     root = Path(__file__).resolve().parents[1]
     s = diagnose(config.load(root / "configs" / "recorded_brfd_whole.yaml"), tmp_path, echo=lambda *a: None)
     assert s["verdict"]["effect"] == "unexplained"

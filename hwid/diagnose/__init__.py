@@ -17,7 +17,8 @@ Steps (:func:`diagnose`, in :mod:`hwid.diagnose.run`):
 """
 from hwid.diagnose.effects import BLOCK, CATALOGUE
 from hwid.diagnose.result import DiagnosisResult
-from hwid.diagnose.run import ID_MIN_RATIO, diagnose
+from hwid.diagnose.conclude import ID_MIN_RATIO
+from hwid.diagnose.run import diagnose
 from hwid.diagnose.sim_side import load_model
 
 __all__ = ["diagnose", "DiagnosisResult", "load_model", "CATALOGUE", "BLOCK", "ID_MIN_RATIO"]

@@ -228,7 +228,7 @@ def lag_by_level(ys, predictions, masks) -> float:
     short in the middle. On the labelled diagnoses of sixteen judged seeds, third-order rigs with a
     saturation between G's lags named `sensor_lag` gave z = 9.3-14.4 live with an identified model
     (17 of 17), 2.8-5.5 from lab logs (15) on the logs' validation parts alone, and 4.8-8.1 (16 of
-    16) on whole logs, fit part and validation part (:func:`hwid.diagnose.run._lag_by_level`).
+    16) on whole logs, fit part and validation part (:func:`hwid.diagnose.conclude._lag_by_level`).
     Right names gave -3.2 to 3.1 (179 sensor lags in all four ways, the paper's 1.9-3.9 s lags
     among them, and 183 delays), and -2.7 to 1.5 on 40 whole logs identified."""
     from hwid.diagnose.gap import correlation_time

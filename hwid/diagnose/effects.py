@@ -25,7 +25,7 @@ import numpy as np
 from hwid.blocks.linear import LinearBlock
 from hwid.blocks.deadzone import deadzone
 from hwid.blocks.slew import slewed
-from hwid.diagnose.modelsim import ModelSim, _direction_arrays, _play_arrays, _since_crossed, first_order, smooth
+from hwid.diagnose.modelsim import ModelSim, direction_arrays, play_arrays, since_crossed, first_order, smooth
 from hwid.model import InputNonlinearity
 
 CATALOGUE = ("input_saturation", "rate_limit", "input_deadzone", "curved_borders", "time_delay",
@@ -237,7 +237,7 @@ class RateLimit(Effect):
         if g0 is not None:
             carried = sim.from_v(sim.model.input.apply(call, g0))
         else:
-            k = max(sim.lead_samples(i), _since_crossed(act[:prev.size], sim.model.input))
+            k = max(sim.lead_samples(i), since_crossed(act[:prev.size], sim.model.input))
             carried = sim.from_input(act[prev.size - k:])[k:]
         return fresh + c * (carried - fresh)
 
@@ -396,11 +396,11 @@ class CurvedBorders(Effect):
             up = F.ascending(u) + F.slope_up * sc[1] * (B @ c_up)
             dn = F.descending(u) + F.slope_down * sc[1] * (B @ c_dn)
             v0 = float(np.clip(0.0, up[0], dn[0])) if dn[0] >= up[0] else 0.5 * (up[0] + dn[0])
-            v = _play_arrays(np.ascontiguousarray(up), np.ascontiguousarray(np.maximum(dn, up)), v0)
+            v = play_arrays(np.ascontiguousarray(up), np.ascontiguousarray(np.maximum(dn, up)), v0)
         else:
             up = F.ascending(u) + sc[1] / F.slope_up * (B @ c_up)
             dn = F.descending(u) + sc[1] / F.slope_down * (B @ c_dn)
-            v = _direction_arrays(u, np.ascontiguousarray(up), np.ascontiguousarray(dn), 0.5 * (up[0] + dn[0]))
+            v = direction_arrays(u, np.ascontiguousarray(up), np.ascontiguousarray(dn), 0.5 * (up[0] + dn[0]))
         return sim.from_v(v)
 
     _scale = (0.0, 1.0)              # centre and half-width of the input range: s = (u - centre) / half-width

@@ -1,6 +1,6 @@
-"""The diagnosis's result from its steps (:func:`hwid.diagnose.run.conclude`): the verdict's block,
+"""The diagnosis's result from its steps (:func:`hwid.diagnose.conclude.conclude`): the verdict's block,
 where the gap lies, every candidate and test as :class:`~hwid.diagnose.result.DiagnosisResult`, and
-``diagnosis.h5``. ``val`` is the diagnosis's :class:`hwid.diagnose.run.Validation`."""
+``diagnosis.h5``. ``val`` is the diagnosis's :class:`hwid.diagnose.context.Validation`."""
 from __future__ import annotations
 
 from hwid.diagnose import gap

@@ -1,5 +1,5 @@
 """Whether a drift may be named from a log, where no repeated experiment shows the plant wander
-(:func:`hwid.diagnose.run.conclude` with ``from_logs``): the holds wander where the best
+(:func:`hwid.diagnose.conclude.conclude` with ``from_logs``): the holds wander where the best
 deterministic candidate does not make them (:func:`repeats_under_best`), and the drift smoother
 takes out most of the excess (:func:`drift_takes_the_excess`); or the slow part of the residual is
 not a function of the motion and has no structure (:func:`drift_from_residual`). With a given
@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 from hwid.diagnose import gap
 
 if TYPE_CHECKING:
-    from hwid.diagnose.run import Validation
+    from hwid.diagnose.context import Validation
 
 #: The most a drift may leave, in units of the noise floor (the issue's tolerance for a verdict).
 DRIFT_MAX_LEFT = 1.5

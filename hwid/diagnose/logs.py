@@ -14,9 +14,11 @@ No new experiment can be run, so the diagnosis works with what the records hold:
    record's initial gear and G state estimated) on the fit parts alone, written to ``whole.h5``.
 3. **Noise floor** (:mod:`hwid.diagnose.gap`): from repeated experiments (identical inputs) where
    the records hold them; else from the settled parts of held inputs; else from the high-frequency
-   part of the model's residual; never below the output's resolution ``q / sqrt(12)``. Which one is
-   said in the JSON (``data.noise_source``).
-4. The effects fitted and ranked as for a live rig (:func:`hwid.diagnose.run.conclude`), with the
+   part of the model's residual; never below the output's resolution ``q / sqrt(12)``, never above
+   the output's own spread (:func:`hwid.diagnose.from_logs.bounded_floor`). Which one is said in
+   the JSON (``data.noise_source``).
+4. The effects fitted and ranked as for a live rig (:func:`hwid.diagnose.conclude.conclude`, from
+   :func:`hwid.diagnose.from_logs.diagnose_recorded`), with the
    groups the validation data cannot tell apart (``indistinguishable``) and, for the leading group,
    the experiment on the live rig that would (:mod:`hwid.diagnose.next_experiment`).
 """
@@ -30,12 +32,7 @@ import numpy as np
 
 from hwid import HwidError
 from hwid.diagnose import experiments, gap
-from hwid.diagnose.effects import catalogue
-from hwid.diagnose.modelsim import ModelSim
-from hwid.diagnose.next_experiment import propose
-from hwid.diagnose.run import Validation, _scale, conclude, drift_additivity
-from hwid.diagnose.sim_side import load_model
-from hwid.recorded import level_segments, load_records
+from hwid.recorded import level_segments
 
 #: Fewest scored samples a record needs to take part in the split.
 MIN_SCORED = 50
@@ -136,14 +133,16 @@ def plan(records) -> tuple[list[tuple], str]:
     return out, "blocks"
 
 
-def with_starts(parts, model, dt: float, settle_s: float, echo) -> tuple[list, dict]:
+def with_starts(parts, model, dt: float, settle_s: float, echo, identified: bool = False) -> tuple[list, dict]:
     """:func:`plan`'s parts as ``(record, role, samples, scored)``, each record's unknown start
     dealt with: burnt in (``scored`` false up to :func:`known_from` with 1.5 settling times); or,
     where the burn-in would leave the records no fit or no validation part of :data:`MIN_SCORED`
-    samples (a slow plant, short records), estimated through ``model`` and put before every record
-    as :data:`hwid.diagnose.starts.PRE` samples that are never scored (:mod:`hwid.diagnose.starts`).
-    Returns the parts and the estimated starts by record name (``level``, ``gear``, and the rms
-    of the record's opening from the default start and from the estimated one).
+    samples (a slow plant, short records, an input that never spans the play of a model
+    ``identified`` from the log), estimated through ``model`` and put before every record as
+    :data:`hwid.diagnose.starts.PRE` samples that are never scored (:mod:`hwid.diagnose.starts`). A
+    given model whose play no record spans is an error (exit 2). Returns the parts and the estimated
+    starts by record name (``level``, ``gear``, and the rms of the record's opening from the default
+    start and from the estimated one).
 
     The burn-in is preferred where it is affordable: an estimated start is fitted by the model
     without the effect, and an effect that shows in a record's opening would be partly absorbed
@@ -160,8 +159,13 @@ def with_starts(parts, model, dt: float, settle_s: float, echo) -> tuple[list, d
     if all(any(p[3].sum() >= MIN_SCORED for p in out if p[1] == role) for role in ("fit", "validation")):
         return out, {}
     if all(known_from(r.u, model.input, 0) >= r.u.size for r, _, _, _ in out):
-        raise HwidError("diagnose: no record's input spans the model's play: nothing in the log moves the gear from "
-                        "one border to the other, so nothing tells where it is; record a run that does")
+        if not identified:
+            raise HwidError("diagnose: no record's input spans the model's play: nothing in the log moves the gear "
+                            "from one border to the other, so nothing tells where it is; record a run that does")
+        # a play identified wider than everything the log drives: the data did not determine it, and
+        # the diagnosis's check of the model on its records reports how far it is off (model_check)
+        echo("no record's input spans the identified model's play (the log cannot have determined it): each "
+             "record's start is fitted through the model over the whole record")
     settle = max(int(round(settle_s / dt)), 1)
     new, found = {}, {}
     for r, _, _, _ in out:
@@ -399,70 +403,3 @@ def holds_floor(exps, recs, xs, design):
         still.append(res[int(moving[-1]) + 1 if moving.size else 0:])
     floor = gap.noise_floor_from_holds(holds, y_scale, repeats, still=still)
     return floor, sum(len(g) for g in repeats), len(repeats)
-
-
-def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effects=None) -> dict:
-    """:func:`hwid.diagnose.diagnose` for ``plant.kind: recorded``; the same JSON, plus
-    ``indistinguishable``, ``next_experiment`` and ``data`` (split and noise source)."""
-    t_start = time.perf_counter()
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    records = [r for r in load_records(cfg) if r.y is not None]
-    dt = cfg.sampling.dt
-    u_all = np.concatenate([r.u for r in records])
-    parts, how = plan(records)
-    if model is not None:
-        sim_model, origin = load_model(model, echo=echo)
-    else:
-        sim_model, origin = identify_from_logs(cfg, fit_pieces(parts), out, echo)
-    seconds_model = time.perf_counter() - t_start
-    settle_s = step_settling_time(sim_model)
-    design = experiments.Design(dt, float(u_all.min()), float(u_all.max()), 0.0, settle_s,
-                                experiments.bandwidth(sim_model, dt), int(cfg.seed))
-    scored_parts, found = with_starts(parts, sim_model, dt, settle_s, echo)
-    exps, recs = split(scored_parts, design)
-    fit_idx = [i for i, e in enumerate(exps) if e.role == "fit"]
-    val_idx = [i for i, e in enumerate(exps) if e.role == "validation"]
-    if not val_idx or not fit_idx:
-        raise HwidError(f"diagnose: the records leave no {'validation' if fit_idx else 'fit'} part of "
-                        f"{MIN_SCORED} samples")
-    pre = [int(r.attrs.get("pre", 0)) for r in recs]
-    before = history(recs, records)
-    sim_fit = ModelSim(sim_model, dt, [exps[i].u for i in fit_idx], [before[i] for i in fit_idx],
-                       [0] * len(fit_idx), pre=[pre[i] for i in fit_idx])
-    sim_val = ModelSim(sim_model, dt, [exps[i].u for i in val_idx], [before[i] for i in val_idx],
-                       [0] * len(val_idx), pre=[pre[i] for i in val_idx])
-    scale = _scale(design, exps, sim_fit, sim_val, recs)
-    val = Validation(design, exps, recs, fit_idx, val_idx, sim_fit, sim_val, scale, 0.0, 0.0)
-    floor, source, pairs = floor_from_logs(exps, recs, val.x_model, sim_model.input, design)
-    echo(f"records split by {how}: fit {', '.join(exps[i].name for i in fit_idx)}; validation "
-         f"{', '.join(exps[i].name for i in val_idx)}; noise floor {floor.sigma:.4g} from the {source}")
-    additive = drift_additivity(pairs, design, floor.sigma)
-    data = {"split": how, "fit": [exps[i].name for i in fit_idx], "validation": [exps[i].name for i in val_idx],
-            "scored_samples": {e.name: int(e.mask.sum()) for e in exps}, "noise_source": source,
-            "starts": found,
-            "records": [{"name": r.name, "samples": int(r.u.size), "seconds": float(r.u.size * dt)} for r in records]}
-    available = catalogue(scale)
-
-    def extra(fitter, cands, verdict, groups, summary):
-        summary["data"] = data
-        lead = groups[0] if groups else None
-        name = summary["verdict"]["effect"]
-        if lead is None or name not in lead["effects"]:
-            return
-        members = [next(c for c in cands if c.effect == e) for e in lead["effects"]]
-        members = [c for c in members if c.theta is not None]
-        if len(members) >= 2:
-            summary["next_experiment"] = propose(fitter, members, available, design, floor.sigma, floor.kappa)
-            echo(f"next experiment: {summary['next_experiment']['why']}")
-
-    cost = {"plant_calls_identification": 0, "plant_calls_validation": 0, "plant_calls_reused": 0,
-            "rig_seconds_validation": 0.0, "rig_seconds_identification": 0.0, "seconds_model": seconds_model,
-            "seconds_rig_validation": 0.0}
-
-    def wander(outputs) -> float:
-        held = holds_floor([exps[i] for i in val_idx], [recs[i] for i in val_idx], outputs, design)
-        return float(held[0].slow_z) if held is not None else float("nan")
-
-    return conclude(cfg, out, json_path, val, floor, additive, sim_model, origin, effects, cost, t_start, echo,
-                    extra=extra, band=NO_BAND, from_logs=True, wander=wander)

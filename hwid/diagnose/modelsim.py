@@ -23,7 +23,7 @@ from hwid.model import HWModel, InputNonlinearity
 # ------------------------------------------------------------------------------ signal primitives
 
 @njit(cache=True)
-def _play_arrays(lo, hi, v0):
+def play_arrays(lo, hi, v0):
     out = np.empty_like(lo)
     prev = v0
     for k in range(lo.shape[0]):
@@ -36,7 +36,7 @@ def _play_arrays(lo, hi, v0):
 
 
 @njit(cache=True)
-def _direction_arrays(z, up, dn, u0):
+def direction_arrays(z, up, dn, u0):
     out = np.empty_like(z)
     prev = u0
     for k in range(z.shape[0]):
@@ -50,7 +50,7 @@ def _direction_arrays(z, up, dn, u0):
     return out
 
 
-def _since_crossed(u, F: InputNonlinearity) -> int:
+def since_crossed(u, F: InputNonlinearity) -> int:
     """Samples back from the end of ``u`` to the start of the shortest tail over which ``u`` spans
     more than F's play (somewhere in it the input moved from one side of the play to the other, so
     the gear's state before it no longer matters); all of ``u`` if no tail does."""

@@ -144,7 +144,7 @@ def eligible(c: Candidate, drift_plausible: bool, threshold: float = 0.5, leaves
     low) can be as large as the effect's excess, and an effect that takes the gap down to where the
     test no longer tells it from noise has explained all that the records can show, whatever share
     of the excess that is. The third is the same for an identified model a little further from the
-    floor (:data:`hwid.diagnose.run.ID_PARTIAL`), and only for an effect of at most
+    floor (:data:`hwid.diagnose.conclude.ID_PARTIAL`), and only for an effect of at most
     :data:`PARTIAL_MAX_PARAMS` parameters."""
     if c.effect == "drift" and not drift_plausible:
         return False

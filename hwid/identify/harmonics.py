@@ -482,6 +482,43 @@ def _component_var(theta_blocks: np.ndarray, k_max: int) -> tuple[np.ndarray, fl
     return 0.5 * (ss[1:k_max + 1] + ss[k_max + 1:]), float(ss[0]), B - 1
 
 
+def _steady_start(theta_p, start: int, k_max: int, steady_alpha: float, min_periods: int) -> tuple[int, float]:
+    """The first steady period from ``start`` on and its p-value: leading periods are dropped while
+    their harmonic coefficients (``theta_p``, one row per period) differ from the late half's mean
+    (an F test on all of them, level ``steady_alpha``)."""
+    P, m = theta_p.shape[0], 2 * k_max + 1
+    late = np.arange(max(start + 1, P - max((P - start) // 2, 1)), P)
+    steady_p = 1.0
+    if late.size >= 3:
+        vk, v0, df_l = _component_var(theta_p[late], k_max)
+        vfull = np.concatenate([[v0], vk, vk])
+        vfull = np.where(vfull > 0, vfull, np.finfo(float).tiny)
+        ref = theta_p[late].mean(axis=0)
+        while True:
+            stat = float(np.sum((theta_p[start] - ref) ** 2 / (vfull * (1 + 1 / late.size)))) / m
+            steady_p = float(special.fdtrc(m, max(df_l * 2, 1), stat))
+            if steady_p >= steady_alpha or P - (start + 1) < max(min_periods, late.size):
+                break
+            start += 1
+    return start, steady_p
+
+
+def _periodicity_p(S: PeriodSums, used, var, dc_var: float, dof: float) -> float:
+    """Periodicity check: the first half of the ``used`` periods against the second half (F test on
+    every coefficient with the variances ``var``, ``dc_var`` of their mean); 1 with fewer than 4."""
+    Pu = used.size
+    if Pu < 4:
+        return 1.0
+    m = S.XtX.shape[-1]
+    h = Pu // 2
+    t1 = np.linalg.solve(S.XtX[used[:h]].sum(0), S.Xty[used[:h]].sum(0))
+    t2 = np.linalg.solve(S.XtX[used[h:]].sum(0), S.Xty[used[h:]].sum(0))
+    vfull = np.concatenate([[dc_var], var, var]) * Pu * (1 / h + 1 / (Pu - h))
+    vfull = np.where(vfull > 0, vfull, np.finfo(float).tiny)      # a noise-free signal
+    stat = float(np.sum((t1 - t2) ** 2 / vfull)) / m
+    return float(special.fdtrc(m, dof if np.isfinite(dof) else 1e9, stat))
+
+
 def fit_harmonics(y, dt: float, omega: float, k_max: int, first_period: int = 0,
                   sums: PeriodSums | None = None, steady_alpha: float = 1e-3, white_alpha: float = 1e-3,
                   noise_model: str = "auto", min_periods: int = 2) -> HarmonicFit:
@@ -520,21 +557,7 @@ def fit_harmonics(y, dt: float, omega: float, k_max: int, first_period: int = 0,
     theta_p = _solve(S.XtX, S.Xty)                       # per-period estimates (P, m)
     m = 2 * k_max + 1
 
-    # -- steady state: drop leading periods while they differ from the late half
-    start = int(first_period)
-    late = np.arange(max(start + 1, P - max((P - start) // 2, 1)), P)
-    steady_p = 1.0
-    if late.size >= 3:
-        vk, v0, df_l = _component_var(theta_p[late], k_max)
-        vfull = np.concatenate([[v0], vk, vk])
-        vfull = np.where(vfull > 0, vfull, np.finfo(float).tiny)
-        ref = theta_p[late].mean(axis=0)
-        while True:
-            stat = float(np.sum((theta_p[start] - ref) ** 2 / (vfull * (1 + 1 / late.size)))) / m
-            steady_p = float(special.fdtrc(m, max(df_l * 2, 1), stat))
-            if steady_p >= steady_alpha or P - (start + 1) < max(min_periods, late.size):
-                break
-            start += 1
+    start, steady_p = _steady_start(theta_p, int(first_period), k_max, steady_alpha, min_periods)
     used = np.arange(start, P)
     Pu = used.size
 
@@ -569,16 +592,7 @@ def fit_harmonics(y, dt: float, omega: float, k_max: int, first_period: int = 0,
     else:
         model, var, dc_var, dof = "periodic", var_per, dc_var_per, float(dfk)
 
-    # -- periodicity check: first half of the used periods against the second half
-    periodicity_p = 1.0
-    if Pu >= 4:
-        h = Pu // 2
-        t1 = np.linalg.solve(S.XtX[used[:h]].sum(0), S.Xty[used[:h]].sum(0))
-        t2 = np.linalg.solve(S.XtX[used[h:]].sum(0), S.Xty[used[h:]].sum(0))
-        vfull = np.concatenate([[dc_var], var, var]) * Pu * (1 / h + 1 / (Pu - h))
-        vfull = np.where(vfull > 0, vfull, np.finfo(float).tiny)      # a noise-free signal
-        stat = float(np.sum((t1 - t2) ** 2 / vfull)) / m
-        periodicity_p = float(special.fdtrc(m, dof if np.isfinite(dof) else 1e9, stat))
+    periodicity_p = _periodicity_p(S, used, var, dc_var, dof)
 
     return HarmonicFit(float(omega), np.arange(1, k_max + 1), _complex(theta, k_max), np.asarray(var),
                        float(theta[0]), float(dc_var), model, float(dof), float(np.sqrt(sigma2)), int(start),

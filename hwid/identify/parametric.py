@@ -175,6 +175,32 @@ def _fit_one(s, Gd, W, n, m, fit_delay, tau0):
     return best
 
 
+def _delay_start(s, G, n: int, m: int, w_scaled) -> float:
+    """The delay's initial value (in the scaled time): the slope of the excess phase of an
+    ``(n, m)`` Levy fit without delay, at least 0."""
+    th = _levy_sk(s, G, n, m, np.ones(G.size))
+    Gm, _, _ = _model(th, s, n, m, 0.0)
+    ex = np.unwrap(np.angle(Gm) - np.angle(G))
+    return max(float(np.polyfit(w_scaled, ex, 1)[0]) if G.size > 1 else 0.0, 0.0)
+
+
+def _pole_covariance(a, cov_a) -> tuple[np.ndarray, np.ndarray]:
+    """The roots of ``1 + a_1 s + ... + a_n s^n`` (unscaled) and the covariance of each root's
+    ``(Re, Im)`` from ``cov_a`` by the delta method (``dp/da_i = -p^i / A'(p)``), sorted by real then
+    imaginary part."""
+    n = len(a)
+    poles = _poles_scaled(a)
+    dA = np.polynomial.polynomial.polyder(np.concatenate([[1.0], a]))
+    pc = np.zeros((n, 2, 2))
+    for i, p in enumerate(poles):
+        g = -(p ** np.arange(1, n + 1)) / np.polynomial.polynomial.polyval(p, dA)   # dp/da
+        Jr = np.vstack([g.real, g.imag])
+        with np.errstate(invalid="ignore", over="ignore"):   # a singular fit: intervals are NaN/inf
+            pc[i] = Jr @ cov_a @ Jr.T
+    order = np.lexsort((poles.imag, poles.real))
+    return poles[order], pc[order]
+
+
 def fit_rational(omega, G, cov, gain=None, phase=None, max_order: int = 4, fit_delay: bool = False,
                  confidence: float = 0.95, orders=None) -> RationalFit:
     """Fit a stable ``G(s)`` with ``G(0) = 1`` to ``G_hat(j omega_i)`` with their uncertainties.
@@ -217,13 +243,7 @@ def fit_rational(omega, G, cov, gain=None, phase=None, max_order: int = 4, fit_d
         k = n + m + (1 if fit_delay else 0)
         if N2 - k < 1:
             continue
-        tau0 = 0.0
-        if fit_delay:
-            # the excess phase of a first-order guess gives the delay's initial value
-            th = _levy_sk(s, G, n, m, np.ones(w.size))
-            Gm, _, _ = _model(th, s, n, m, 0.0)
-            ex = np.unwrap(np.angle(Gm) - np.angle(G))
-            tau0 = max(float(np.polyfit(w / w_ref, ex, 1)[0]) if w.size > 1 else 0.0, 0.0)
+        tau0 = _delay_start(s, G, n, m, w / w_ref) if fit_delay else 0.0
         r = _fit_one(s, G, W, n, m, fit_delay, tau0)
         if r is None:
             continue
@@ -257,17 +277,8 @@ def fit_rational(omega, G, cov, gain=None, phase=None, max_order: int = 4, fit_d
     cov_u = cov_x * np.outer(scale, scale)
     tau = float(x[n + m] / w_ref) if fit_delay else 0.0
     tau_se = float(np.sqrt(cov_u[-1, -1])) if fit_delay else 0.0
-    poles = _poles_scaled(a)
+    poles, pc = _pole_covariance(a, cov_u[:n, :n])
     Ap = np.concatenate([[1.0], a])
-    dA = np.polynomial.polynomial.polyder(Ap)
-    pc = np.zeros((n, 2, 2))
-    for i, p in enumerate(poles):
-        g = -(p ** np.arange(1, n + 1)) / np.polynomial.polynomial.polyval(p, dA)   # dp/da
-        Jr = np.vstack([g.real, g.imag])
-        with np.errstate(invalid="ignore", over="ignore"):   # a singular fit: intervals are NaN/inf
-            pc[i] = Jr @ cov_u[:n, :n] @ Jr.T
-    order = np.lexsort((poles.imag, poles.real))
-    poles, pc = poles[order], pc[order]
     den = Ap[::-1] / Ap[-1]
     num = np.concatenate([[1.0], b])[::-1] / Ap[-1]
     warns = []

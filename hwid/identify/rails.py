@@ -13,7 +13,7 @@ no model is needed for, and it matters twice over:
   runs them again smaller);
 * a log whose clipped stretch lies where the model's state is unknown (its opening) shows no gap
   on the validation part, yet the rig clipped: the diagnosis names ``sensor_saturation`` from the
-  rail where the gap test finds nothing (:func:`hwid.diagnose.run.conclude`).
+  rail where the gap test finds nothing (:func:`hwid.diagnose.conclude.conclude`).
 
 A quantised sensor (an encoder's counts) repeats values everywhere; there a repeat says nothing and
 no rail is reported (:data:`MAX_REPEATS_ELSEWHERE`).

@@ -1,0 +1,452 @@
+"""Whether a model is adequate for the records it is used on: its free-run residual against a noise
+floor estimated from the data alone, with residual tests like the System Identification Toolbox's
+``resid``.
+
+The noise floor (:func:`estimate_floor`) comes, in this order, from
+
+* repeats: records with identical inputs, whose outputs differ by noise alone once the start has
+  been forgotten (``(y_a - y_b) / sqrt(2)``);
+* settled holds: the second half of each stretch of constant input, where the output is constant
+  but for noise and a slow drift (each block of at most :data:`BLOCK` samples less its own quadratic);
+* a smoother: the residual of a local quartic (Savitzky-Golay, :data:`SMOOTHER_WINDOW` samples),
+  whose variance is ``sigma^2 (1 - h_0)`` for white noise (``h_0`` the smoother's centre weight);
+
+never below the output's quantum ``q / sqrt(12)`` and never above the output's own spread (a floor
+that large is undetermined: the data cannot tell noise from signal).
+
+The verdict (:func:`assess`): the model's mean-square residual over the floor's is ``F(n_eff, dof)``
+distributed when the residual is noise (``n_eff`` the scored samples over the noise's correlation
+time, ``dof`` the floor's degrees of freedom); above its ``1 - ALPHA`` quantile the model is a
+misfit. A block whose variance or mean is an outlier against the others (a push on a hold, a step
+inside the smoother's window) is left out of the floor before pooling.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy import signal, special, stats
+
+#: false-alarm rate of the misfit test on a correct model (per assessment)
+ALPHA = 0.01
+#: fewest scored samples to judge a model on
+MIN_SCORED = 50
+#: fewest degrees of freedom of a floor estimate from repeats or holds before the next source is tried
+MIN_DOF = 30
+#: longest block detrended by its own quadratic (samples): a slow drift is a parabola over it
+BLOCK = 100
+#: fewest samples of a hold's settled half, of a repeat, of a smoother block
+MIN_BLOCK = 20
+#: the smoother's window (samples) and polynomial order
+SMOOTHER_WINDOW, SMOOTHER_ORDER = 21, 4
+#: a block whose variance exceeds the median block's by this tail probability is left out of the floor
+OUTLIER_P = 1e-3
+#: lags of the residual tests, after decimation to about this many samples per settling time
+LAGS, SAMPLES_PER_SETTLING = 20, 20
+
+
+@dataclass(frozen=True)
+class NoiseFloor:
+    """The output-noise standard deviation ``sigma`` (units of y, > 0) and where it came from.
+
+    ``dof`` are the degrees of freedom of ``sigma^2`` (0: not from data); ``kappa`` the noise's
+    correlation time in samples (1: white); ``determined`` is False where the estimate came out at
+    or above the output's own spread (``sigma`` is then that spread, and ``reason`` says so)."""
+
+    sigma: float
+    source: str
+    quantum: float
+    dof: float = 0.0
+    kappa: float = 1.0
+    determined: bool = True
+    reason: str = ""
+
+    def interval(self, level: float = 0.95) -> tuple[float, float] | None:
+        """The ``level`` sampling interval of ``sigma`` (chi-square on ``dof``), None without dof."""
+        if self.dof <= 0 or not self.determined:
+            return None
+        lo, hi = stats.chi2.ppf([(1 + level) / 2, (1 - level) / 2], self.dof)
+        return float(self.sigma * np.sqrt(self.dof / lo)), float(self.sigma * np.sqrt(self.dof / hi))
+
+    def to_dict(self) -> dict:
+        iv = self.interval()
+        return {**asdict(self), "interval": None if iv is None else list(iv)}
+
+
+@dataclass(frozen=True)
+class Adequacy:
+    """A model's residual on its records against the noise floor, and the verdict on it."""
+
+    verdict: str
+    rms_fit: float
+    rms_held_out: float | None
+    floor: NoiseFloor
+    ratio: float
+    whiteness_p: float | None
+    input_correlation_p: float | None
+    reason: str
+    scored: int = 0
+    bound: float | None = None
+
+    @property
+    def misfit(self) -> bool:
+        return self.verdict == "misfit"
+
+    def to_dict(self) -> dict:
+        return {"verdict": self.verdict, "rms_fit": self.rms_fit, "rms_held_out": self.rms_held_out,
+                "floor": self.floor.to_dict(), "ratio": self.ratio, "whiteness_p": self.whiteness_p,
+                "input_correlation_p": self.input_correlation_p, "reason": self.reason, "scored": self.scored,
+                "bound": self.bound}
+
+
+# ----------------------------------------------------------------------------------------------
+# the noise floor
+
+def _quadratic_residual(x: np.ndarray) -> np.ndarray:
+    """``x`` less its least-squares quadratic in time."""
+    t = np.linspace(-1.0, 1.0, x.size)
+    return x - np.polyval(np.polyfit(t, x, 2), t)
+
+
+def _blocks(x: np.ndarray) -> list[np.ndarray]:
+    """``x`` cut into near-equal blocks of at most :data:`BLOCK` samples (none below :data:`MIN_BLOCK`)."""
+    if x.size < MIN_BLOCK:
+        return []
+    k = int(np.ceil(x.size / BLOCK))
+    return [b for b in np.array_split(x, k) if b.size >= MIN_BLOCK]
+
+
+def correlation_time(e: np.ndarray, lags: int = 50) -> float:
+    """Integrated autocorrelation time of ``e`` in samples (1 for white noise; Sokal's window)."""
+    e = np.asarray(e, float) - np.mean(e)
+    c0 = float(e @ e)
+    if e.size < 4 * lags or c0 == 0:
+        return 1.0
+    tau = 1.0
+    for k in range(1, lags):
+        tau += 2.0 * float(e[k:] @ e[:-k]) / c0
+        if k >= 5 * tau:
+            break
+    return float(max(tau, 1.0))
+
+
+def _pooled(pieces: list[tuple[float, float, float]]) -> tuple[float, float] | None:
+    """Pooled variance and its dof from per-block ``(sum of squares, its expectation over sigma^2,
+    dof)``, leaving out blocks whose variance is an outlier above the median block's (:data:`OUTLIER_P`)."""
+    pieces = [p for p in pieces if p[1] > 0 and p[2] > 0]
+    if not pieces:
+        return None
+    var = np.array([ss / n for ss, n, _ in pieces])
+    med = float(np.median(var))
+    keep = [p for p, v in zip(pieces, var) if med == 0 or v <= med * stats.chi2.ppf(1 - OUTLIER_P, p[2]) / p[2]]
+    ss, n, dof = (sum(p[k] for p in keep) for k in range(3))
+    return (ss / n, float(dof)) if n > 0 else None
+
+
+def _detrended(x: np.ndarray) -> tuple[list[tuple[float, float]], list[np.ndarray]]:
+    """Per block of ``x``: (sum of squares about its quadratic, dof, dof) and the detrended block."""
+    out, parts = [], []
+    for b in _blocks(np.asarray(x, float)):
+        r = _quadratic_residual(b)
+        out.append((float(r @ r), b.size - 3.0, b.size - 3.0))
+        parts.append(r)
+    return out, parts
+
+
+def _start(rec) -> int:
+    return int(getattr(rec, "attrs", {}).get("pre", 0) or 0)
+
+
+def _repeats(records) -> tuple | None:
+    """The floor from pairs of records with identical inputs: ``(var, dof, kappa, detail)`` or None."""
+    pieces, parts, pairs = [], [], 0
+    for i, a in enumerate(records):
+        ua = np.asarray(a.u, float)[_start(a):]
+        for b in records[i + 1:]:
+            ub = np.asarray(b.u, float)[_start(b):]
+            if ua.size != ub.size or ua.size < 5 * MIN_BLOCK or not np.array_equal(ua, ub):
+                continue
+            d = (np.asarray(a.y, float)[_start(a):] - np.asarray(b.y, float)[_start(b):]) / np.sqrt(2.0)
+            blocks, res = _detrended(d[d.size // 5:])     # the first fifth: the starts may differ
+            pieces += blocks
+            parts += res
+            pairs += 1
+    pooled = _pooled(pieces)
+    if pooled is None or pooled[1] < MIN_DOF:
+        return None
+    return pooled[0], pooled[1], correlation_time(np.concatenate(parts)), f"{pairs} pair(s) of repeated records"
+
+
+def hold_segments(u: np.ndarray, min_samples: int = 2 * MIN_BLOCK) -> list[tuple[int, int]]:
+    """``[start, stop)`` of each stretch of at least ``min_samples`` equal input samples."""
+    u = np.asarray(u, float)
+    if u.size < min_samples:
+        return []
+    change = np.flatnonzero(np.diff(u) != 0) + 1
+    bounds = np.concatenate([[0], change, [u.size]])
+    return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:]) if b - a >= min_samples]
+
+
+def _holds(records) -> tuple | None:
+    """The floor from the settled half of each hold: ``(var, dof, kappa, detail)`` or None."""
+    pieces, parts, holds = [], [], 0
+    for r in records:
+        y = np.asarray(r.y, float)
+        for a, b in hold_segments(r.u):
+            blocks, res = _detrended(y[(a + b) // 2:b])
+            pieces += blocks
+            parts += res
+            holds += bool(blocks)
+    pooled = _pooled(pieces)
+    if pooled is None or pooled[1] < MIN_DOF:
+        return None
+    return pooled[0], pooled[1], float(np.median([correlation_time(p, 10) for p in parts])), f"{holds} hold(s)"
+
+
+def _smoother_kernel(window: int) -> tuple[float, float]:
+    """The local polynomial's centre weight ``h_0`` and the dof per sample of its residual's
+    mean square for white noise (``1 / sum_k rho_k^2``, ``rho`` the residual's autocorrelation)."""
+    h = signal.savgol_coeffs(window, SMOOTHER_ORDER)
+    g = -h
+    g[window // 2] += 1.0
+    acf = np.correlate(g, g, mode="full")
+    acf /= acf[window - 1]
+    return float(h[window // 2]), float(1.0 / np.sum(acf * acf))
+
+
+def _smoother(records) -> tuple | None:
+    """The floor from a local quartic's residual, its variance corrected by ``1 - h_0``."""
+    pieces, used = [], 0
+    for r in records:
+        y = np.asarray(r.y, float)
+        window = min(SMOOTHER_WINDOW, (y.size // 2) * 2 - 1)
+        if window <= SMOOTHER_ORDER + 2:
+            continue
+        h0, per_sample = _smoother_kernel(window)
+        res = (y - signal.savgol_filter(y, window, SMOOTHER_ORDER))[window // 2: y.size - window // 2]
+        for b in _blocks(res):
+            pieces.append((float(b @ b), b.size * (1.0 - h0), b.size * per_sample))
+        used += 1
+    pooled = _pooled(pieces)
+    if pooled is None:
+        return None
+    return pooled[0], pooled[1], 1.0, f"a local quartic over {SMOOTHER_WINDOW} samples on {used} record(s)"
+
+
+def output_quantum(records, quantum: float = 0.0) -> float:
+    """The output's resolution ``q``: ``quantum``, a record's ``output_resolution``, or 1 where every
+    output sample is an integer (counts); the largest of these."""
+    q = [float(quantum or 0.0)] + [float(getattr(r, "attrs", {}).get("output_resolution", 0.0) or 0.0)
+                                   for r in records]
+    y = np.concatenate([np.asarray(r.y, float) for r in records]) if records else np.zeros(0)
+    if y.size and np.ptp(y) > 0 and np.all(y == np.round(y)):
+        q.append(1.0)
+    return max(q)
+
+
+def output_spread(records) -> float:
+    """The output's own standard deviation about each record's mean (units of y)."""
+    return _spread([r.y for r in records])
+
+
+def _spread(outputs) -> float:
+    parts = [np.asarray(y, float) - np.mean(y) for y in outputs if np.size(y)]
+    return float(np.std(np.concatenate(parts))) if parts else 0.0
+
+
+def estimate_floor(records, quantum: float = 0.0) -> NoiseFloor:
+    """The output-noise standard deviation from the data alone: repeats (identical inputs) where
+    there are any; else the scatter within settled holds; else a local high-order smoother's
+    residual; never below the quantum ``q / sqrt(12)``, never above the output's spread.
+
+    Raises ``ValueError`` when no record has an output."""
+    records = [r for r in records if getattr(r, "y", None) is not None and np.size(r.y) > 0]
+    if not records:
+        raise ValueError("no record with an output to estimate the noise floor from")
+    q = output_quantum(records, quantum)
+    qf = q / np.sqrt(12.0)
+    spread = output_spread(records)
+    for source, how in (("repeats", _repeats), ("holds", _holds), ("smoother", _smoother)):
+        found = how(records)
+        if found is not None:
+            var, dof, kappa, detail = found
+            break
+    else:
+        source, var, dof, kappa, detail = "quantum", 0.0, 0.0, 1.0, "no repeat, hold or record long enough"
+    sigma, reason = float(np.sqrt(var)), f"from {detail}"
+    if sigma < qf:
+        sigma, source, dof = float(qf), "quantum", 0.0
+        reason += f"; raised to the output's quantum {q:.4g} / sqrt(12)"
+    if sigma == 0.0:
+        sigma = 1e-6 * spread if spread > 0 else 1e-12
+        reason += "; no noise seen, floor set at 1e-6 of the output's spread"
+    floor = NoiseFloor(sigma, source, float(qf), float(dof), float(kappa), True, reason)
+    upper = floor.interval(0.99)
+    if sigma >= spread or (upper is not None and upper[1] >= spread):
+        reason += (f"; the estimate {sigma:.4g} is not clearly below the output's own spread {spread:.4g}: the data "
+                   "cannot tell noise from signal")
+        return NoiseFloor(float(min(sigma, spread)) if spread > 0 else sigma, source, float(qf), 0.0, kappa, False,
+                          reason)
+    return floor
+
+
+# ----------------------------------------------------------------------------------------------
+# residual tests
+
+def _lags(n: int, max_lag: int) -> int:
+    return int(max(1, min(max_lag, n // 4)))
+
+
+def ljung_box(residual, max_lag: int = 25) -> tuple[float, int]:
+    """Ljung-Box statistic of ``residual`` over ``max_lag`` lags (fewer on short records) and its dof."""
+    e = np.asarray(residual, float) - np.mean(residual)
+    n, m = e.size, _lags(e.size, max_lag)
+    c0 = float(e @ e)
+    if c0 == 0:
+        return 0.0, m
+    r = np.array([float(e[k:] @ e[:-k]) / c0 for k in range(1, m + 1)])
+    return float(n * (n + 2) * np.sum(r * r / (n - np.arange(1, m + 1)))), m
+
+
+def input_correlation(residual, u, max_lag: int = 25) -> tuple[float, int]:
+    """``n sum_k rho_eu(k)^2`` over lags ``k = 0 .. max_lag-1`` (residual against past inputs),
+    chi-square with that many degrees of freedom when the two are uncorrelated."""
+    e = np.asarray(residual, float) - np.mean(residual)
+    x = np.asarray(u, float) - np.mean(u)
+    n, m = e.size, _lags(e.size, max_lag)
+    scale = np.sqrt(float(e @ e) * float(x @ x))
+    if scale == 0:
+        return 0.0, m
+    rho = np.array([float(e[k:] @ x[:n - k]) / scale for k in range(m)])
+    return float(n * np.sum(rho * rho)), m
+
+
+def settling_time(model) -> float:
+    """2 % settling time of G (s) from its slowest stable pole and its delay; inf when G is unstable."""
+    p = np.asarray(model.linear.poles())
+    if p.size and np.max(p.real) >= 0:
+        return float("inf")
+    slow = np.min(np.abs(p.real)) if p.size else np.inf
+    return float(4.0 / slow + model.linear.delay) if np.isfinite(slow) and slow > 0 else float(model.linear.delay)
+
+
+def _scored(model, records, starts: dict | None, settle_s: float) -> list[tuple]:
+    """``(residual, u)`` on each record's scored samples: all of it from a given start, else after a
+    burn-in of 1.5 settling times and the first fifth (the rig's state before the record)."""
+    out = []
+    for r in records:
+        u, y = np.asarray(r.u, float), np.asarray(r.y, float)
+        if u.size < 10 or y.size != u.size:
+            continue
+        st = (starts or {}).get(r.name)
+        with np.errstate(all="ignore"):
+            if st is not None:
+                x, k0 = model.simulate(u, r.dt, gear=st["gear"], rest=st["rest"]).x, 0
+            else:
+                x = model.simulate(u, r.dt).x
+                burn = 1.5 * settle_s / r.dt if np.isfinite(settle_s) else 0.0
+                k0 = int(max(round(burn), u.size // 5))
+        if k0 < u.size - 10:
+            out.append((y[k0:] - x[k0:], u[k0:], y[k0:]))
+    return out
+
+
+def _residual_tests(scored, step: int) -> tuple[float | None, float | None]:
+    """Whiteness and input-correlation p-values over the records, each residual decimated by ``step``."""
+    qw = qi = 0.0
+    mw = mi = 0
+    for e, u, _ in scored:
+        k = max(1, min(step, e.size // (5 * LAGS)))      # a slow model's long records still get their lags
+        e, u = e[::k], u[::k]
+        if e.size < 4 * LAGS or not np.all(np.isfinite(e)):
+            continue
+        a, m = ljung_box(e, LAGS)
+        b, k = input_correlation(e, u, LAGS)
+        qw, mw, qi, mi = qw + a, mw + m, qi + b, mi + k
+    if not mw:
+        return None, None
+    return float(special.chdtrc(mw, qw)), float(special.chdtrc(mi, qi))
+
+
+def _rms(scored) -> float | None:
+    if not scored:
+        return None
+    e = np.concatenate([s[0] for s in scored])
+    with np.errstate(all="ignore"):
+        return float(np.sqrt(np.mean(e * e)))
+
+
+def _bound(n: int, floor: NoiseFloor, alpha: float) -> float:
+    """The largest RMS / floor a correct model reaches with probability ``1 - alpha``."""
+    n_eff = max(n / max(floor.kappa, 1.0), 1.0)
+    q = stats.chi2.ppf(1 - alpha, n_eff) / n_eff if floor.dof <= 0 else stats.f.ppf(1 - alpha, n_eff, floor.dof)
+    return float(np.sqrt(q))
+
+
+def assess(model, records, held_out=(), floor: NoiseFloor | None = None, starts: dict | None = None,
+           alpha: float = ALPHA, label: str = "its own records") -> Adequacy:
+    """Whether ``model`` (an :class:`hwid.model.HWModel`) explains ``records`` (and ``held_out``)
+    down to the noise floor: the model's free run on each record (:func:`_scored`), judged by
+    :func:`judge`.
+
+    ``starts``: ``{record name: {"gear", "rest"}}`` as the whole fit estimates them; records without
+    one are scored after a burn-in of 1.5 settling times and the first fifth. ``floor`` None:
+    :func:`estimate_floor` on all records. ``label``: what ``records`` are, for the reason."""
+    records, held_out = list(records), list(held_out)
+    if floor is None:
+        floor = estimate_floor(records + held_out)
+    settle = settling_time(model)
+    fit, held = _scored(model, records, starts, settle), _scored(model, held_out, starts, settle)
+    step = max(1, int(settle / (SAMPLES_PER_SETTLING * records[0].dt))) if records and np.isfinite(settle) else 1
+    return judge(fit, floor, held, step, alpha, label)
+
+
+def judge(scored, floor: NoiseFloor, held_out=(), step: int = 1, alpha: float = ALPHA,
+          label: str = "its own records") -> Adequacy:
+    """The verdict on a model's residuals: ``scored`` and ``held_out`` hold ``(residual, input,
+    output)`` per record on its scored samples; ``step`` decimates the residual for the residual
+    tests (about :data:`SAMPLES_PER_SETTLING` samples per settling time).
+
+    ``misfit`` when a residual is not finite (the free run diverges), when the RMS exceeds the
+    output's own spread (worse than the output's mean), or when the worst RMS over the floor exceeds
+    its ``1 - alpha`` bound (:func:`_bound`, ``alpha`` split between the fit and held-out records);
+    ``undetermined`` with fewer than :data:`MIN_SCORED` scored samples or an undetermined floor;
+    else ``adequate``."""
+    fit, held = list(scored), list(held_out)
+    rms_fit, rms_held = _rms(fit), _rms(held)
+    rms_fit = float("nan") if rms_fit is None else rms_fit
+    n_scored = sum(s[0].size for s in fit + held)
+    white_p, input_p = _residual_tests(fit + held, step)
+    parts = [(rms_fit, fit, label)] + ([(rms_held, held, "the held-out records")] if held else [])
+    ratio = max(r for r, _, _ in parts) / floor.sigma
+    spread = _spread([s[2] for s in fit + held])
+
+    def result(verdict: str, reason: str, bound: float | None = None) -> Adequacy:
+        return Adequacy(verdict, rms_fit, rms_held, floor, float(ratio), white_p, input_p, reason, int(n_scored),
+                        bound)
+
+    if n_scored < MIN_SCORED:
+        return result("undetermined", f"only {n_scored} scored samples (at least {MIN_SCORED} are needed to judge "
+                                      "the model)")
+    worst = max(parts, key=lambda p: p[0] if np.isfinite(p[0]) else np.inf)
+    if not np.isfinite(worst[0]):
+        return result("misfit", f"the model's free run on {worst[2]} is not finite: it diverges")
+    if worst[0] > spread and floor.determined or worst[0] > 2 * spread:
+        return result("misfit", f"the model's free run misses {worst[2]} by RMS {worst[0]:.4g}, more than the "
+                                f"output's own spread {spread:.4g} (worse than its mean): it diverges or is far off")
+    if not floor.determined:
+        return result("undetermined", f"RMS {worst[0]:.4g} on {worst[2]}, but the noise floor is undetermined "
+                                      f"({floor.reason})")
+    verdicts = []
+    for rms, sc, what in parts:
+        bound = _bound(sum(s[0].size for s in sc), floor, alpha / len(parts))
+        verdicts.append((rms / floor.sigma > bound, rms, bound, what))
+    bad = [v for v in verdicts if v[0]]
+    if bad:
+        _, rms, bound, what = max(bad, key=lambda v: v[1] / v[2])
+        return result("misfit", f"RMS {rms:.4g} on {what} = {rms / floor.sigma:.3g} x the noise floor "
+                                f"{floor.sigma:.4g} ({floor.source}), above the {bound:.3g} a correct model reaches "
+                                f"(false-alarm rate {alpha:g})", bound)
+    bound = max(v[2] for v in verdicts)
+    return result("adequate", f"RMS {worst[0]:.4g} on {worst[2]} = {ratio:.3g} x the noise floor {floor.sigma:.4g} "
+                              f"({floor.source}), within the {bound:.3g} a correct model reaches", bound)

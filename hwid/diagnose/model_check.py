@@ -1,0 +1,87 @@
+"""The diagnosis's model checked on its own records before its gap is read
+(:func:`hwid.adequacy.assess`): an identified model on the records it was identified from (from the
+starts the identification estimated, where it did), a given model on the validation records. A
+model that misses its own records by more than noise cannot make the diagnosis say that the gap is
+noise: the verdict is then ``unexplained``, never ``none``.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from hwid import adequacy
+from hwid.diagnose.context import Context
+
+
+def adequacy_where(ctx: Context) -> str:
+    """Which records :func:`model_adequacy` judged the model on, in words."""
+    if ctx.adequacy_on:
+        return ctx.adequacy_on
+    if ctx.identified and ctx.origin.get("records"):
+        return "its own records (those it was identified from)"
+    return "the validation records"
+
+
+def model_adequacy(ctx: Context) -> adequacy.Adequacy | None:
+    """The model's adequacy, its noise floor estimated from the records judged alone
+    (:func:`hwid.adequacy.estimate_floor`): an identified model's free run on its identification
+    records (from the starts the identification estimated, where it did); a given model's
+    predictions on the validation records as the diagnosis simulates them (each from the input
+    the plant had before it). None where there are no records."""
+    if ctx.identified and ctx.origin.get("records"):
+        records = [r for r in ctx.origin["records"] if getattr(r, "y", None) is not None]
+        return adequacy.assess(ctx.sim_model, records, starts=ctx.origin.get("starts")) if records else None
+    val = ctx.val
+    records = [val.records[i] for i in val.val_idx]
+    if not records:
+        return None
+    scored, own = [], []
+    for r, x, m in zip(records, val.sim_val.x, val.m_val):
+        y, u = np.asarray(r.y, float), np.asarray(r.u, float)
+        scored.append((y[m] - np.asarray(x, float)[m], u[m], y[m]))
+        pre = int((getattr(r, "attrs", None) or {}).get("pre", 0) or 0)   # a start estimated before the log
+        own.append(replace(r, u=u[pre:], y=y[pre:]))
+    step = max(1, int(val.design.settle_s / (adequacy.SAMPLES_PER_SETTLING * val.design.dt)))
+    return adequacy.judge(scored, adequacy.estimate_floor(own), step=step, label="the validation records")
+
+
+def fails_own_records(ctx: Context, min_ratio: float) -> adequacy.Adequacy | None:
+    """The model's adequacy where it is a misfit by more than the diagnosis allows a model's own
+    error (mean-square ratio ``min_ratio``, the gap test's: 1.25 for an identified model, 1.1 for a
+    given one); else None."""
+    ad = ctx.model_adequacy
+    if ad is None or not ad.misfit or not ad.ratio ** 2 > min_ratio:
+        return None
+    return ad
+
+
+def not_none_from_a_misfit(ctx: Context, verdict, why: str, min_ratio: float) -> tuple[object, str]:
+    """``(verdict, why)``, with ``none`` turned into ``unexplained`` where the model fails its own
+    records (:func:`fails_own_records`): what the model misses there is not noise."""
+    ad = fails_own_records(ctx, min_ratio)
+    if verdict != "none" or ad is None:
+        return verdict, why
+    rms = ad.rms_fit if ad.rms_held_out is None else max(ad.rms_fit, ad.rms_held_out)
+    why = (f"the model is not adequate on {adequacy_where(ctx)}: RMS {rms:.4g} = {ad.ratio:.3g} x the floor "
+           f"{ad.floor.sigma:.4g} ({ad.floor.source}, from the data alone); a gap within the diagnosis's noise floor "
+           f"{ctx.floor.sigma:.4g} is then no sign that the plant is the model: unexplained instead of none")
+    ctx.echo(why)
+    return "unexplained", why
+
+
+def describe_misfit(ctx: Context) -> str:
+    """One line for a model that is a misfit on its records: by how much, against which floor."""
+    ad = ctx.model_adequacy
+    rms = ad.rms_fit if ad.rms_held_out is None else max(ad.rms_fit, ad.rms_held_out)
+    return (f"the model is not adequate on {adequacy_where(ctx)}: RMS {rms:.4g} = {ad.ratio:.3g} x the floor "
+            f"{ad.floor.sigma:.4g} ({ad.floor.source}, from the data alone): {ad.reason}")
+
+
+def adequacy_tail(ctx: Context) -> str:
+    """The verdict line's tail: the model's own fit on its records."""
+    ad = ctx.model_adequacy
+    if ad is None:
+        return ""
+    return (f"; the model on {adequacy_where(ctx)}: RMS {ad.rms_fit:.4g} = {ad.ratio:.3g} x the floor "
+            f"{ad.floor.sigma:.4g} ({ad.verdict})")
