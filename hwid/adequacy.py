@@ -293,11 +293,15 @@ def estimate_floor(records, quantum: float = 0.0) -> NoiseFloor:
 # ----------------------------------------------------------------------------------------------
 # residual tests
 
+#: Largest lag of the residual tests (whiteness and input correlation), as MATLAB's ``resid`` draws them.
+MAX_LAG = 25
+
+
 def _lags(n: int, max_lag: int) -> int:
     return int(max(1, min(max_lag, n // 4)))
 
 
-def ljung_box(residual, max_lag: int = 25) -> tuple[float, int]:
+def ljung_box(residual, max_lag: int = MAX_LAG) -> tuple[float, int]:
     """Ljung-Box statistic of ``residual`` over ``max_lag`` lags (fewer on short records) and its dof."""
     e = np.asarray(residual, float) - np.mean(residual)
     n, m = e.size, _lags(e.size, max_lag)
@@ -308,7 +312,7 @@ def ljung_box(residual, max_lag: int = 25) -> tuple[float, int]:
     return float(n * (n + 2) * np.sum(r * r / (n - np.arange(1, m + 1)))), m
 
 
-def input_correlation(residual, u, max_lag: int = 25) -> tuple[float, int]:
+def input_correlation(residual, u, max_lag: int = MAX_LAG) -> tuple[float, int]:
     """``n sum_k rho_eu(k)^2`` over lags ``k = 0 .. max_lag-1`` (residual against past inputs),
     chi-square with that many degrees of freedom when the two are uncorrelated."""
     e = np.asarray(residual, float) - np.mean(residual)

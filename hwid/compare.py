@@ -23,11 +23,8 @@ from scipy import optimize, special
 
 from hwid import HwidError
 from hwid import adequacy
-from hwid.adequacy import input_correlation, ljung_box
+from hwid.adequacy import MAX_LAG, input_correlation, ljung_box
 from hwid.model import HWModel
-
-#: lags of the residual tests (``resid``'s default is 25; fewer on short records)
-MAX_LAG = 25
 
 
 @dataclass(frozen=True)

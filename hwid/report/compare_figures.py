@@ -37,7 +37,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from scipy import special
 
-from hwid.compare import MAX_LAG, input_correlation, ljung_box
+from hwid.adequacy import MAX_LAG, input_correlation, ljung_box
 from hwid.report.figures import decimate_envelope
 
 #: two-sided 99 % normal quantile: ``resid``'s confidence level
@@ -63,8 +63,8 @@ class ResidualCorrelation:
     experiments: int                # experiments long enough to draw
     step: int                       # decimation: every step-th sample
     dt: float                       # the records' sample time, s
-    whiteness_p: float              # Ljung-Box (hwid.compare.ljung_box) on the drawn samples
-    input_correlation_p: float      # hwid.compare.input_correlation on the drawn samples
+    whiteness_p: float              # Ljung-Box (hwid.adequacy.ljung_box) on the drawn samples
+    input_correlation_p: float      # hwid.adequacy.input_correlation on the drawn samples
 
     def to_dict(self) -> dict:
         return {"auto_lags": self.auto_lags.tolist(), "auto": self.auto.tolist(), "auto_band": self.auto_band,
@@ -104,8 +104,8 @@ def residual_correlation(residuals: Sequence, inputs: Sequence, step: int = 1, m
     """The residuals' autocorrelation and cross-correlation with the inputs, one experiment per item,
     on every ``step``-th sample, pooled over the experiments (each weighted by its samples) with the
     99 % bands of the module's docstring; experiments with no more than ``2 max_lag`` samples after
-    decimation are left out of the correlations. The p-values pool :func:`hwid.compare.ljung_box`
-    and :func:`hwid.compare.input_correlation` (chi-square, their degrees of freedom summed) over the
+    decimation are left out of the correlations. The p-values pool :func:`hwid.adequacy.ljung_box`
+    and :func:`hwid.adequacy.input_correlation` (chi-square, their degrees of freedom summed) over the
     same samples."""
     auto_lags, cross_lags = np.arange(1, max_lag + 1), np.arange(-max_lag, max_lag + 1)
     auto, cross = np.zeros(max_lag), np.zeros(cross_lags.size)
