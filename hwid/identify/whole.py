@@ -35,7 +35,8 @@ from hwid import HwidError
 from hwid.blocks.slew import slewed
 from hwid.identify.g_structure import STRUCTURES, Structure, g_from_params, g_params_from, structure_of
 from hwid.identify.result import WholeResult
-from hwid.model import HWModel, InputNonlinearity
+from hwid.identify.whole_stats import central_grad, central_jacobian, correlation_time
+from hwid.model import Actuator, HWModel, InputNonlinearity
 from hwid.threads import forked_map, workers
 
 
@@ -104,6 +105,26 @@ class _Problem:
                 last = float(u[-1]) if u.size else last
             out.append(u)
         return out
+
+    def positions(self, theta) -> list[float | None]:
+        """Where the slew starts each record (:meth:`actuated`): the previous record's last actuated
+        input where it is ``carried`` (the first record's clipped first input), else None."""
+        if self.rate(theta) is None or not self.carried:
+            return [None] * len(self.records)
+        clip = self.clip(theta)
+        out, last = [], None
+        for r, a in zip(self.records, self.actuated(theta)):
+            first = float(r.u[0] if clip is None else np.clip(r.u[0], *clip)) if r.u.size else None
+            out.append(first if last is None else last)
+            last = float(a[-1]) if a.size else last
+        return out
+
+    def actuator(self, theta) -> Actuator | None:
+        """The fit's actuator (:class:`hwid.model.Actuator`): its clip and slew rate, or None."""
+        clip, rate = self.clip(theta), self.rate(theta)
+        if clip is None and rate is None:
+            return None
+        return Actuator(clip=clip, rate=rate, carried=bool(self.carried and rate is not None))
 
     def _unpacked(self, theta):
         """``(F, G, states, actuated inputs)`` of ``theta``."""
@@ -450,9 +471,13 @@ class WholeModelFit:
         if prob.degree == self.max_degree:
             warnings.append(f"h_bar's degree is the highest tried ({self.max_degree}); a higher one may fit better")
         init = {rec.name: {"gear": gear, "rest": rest} for rec, (gear, rest) in zip(prob.records, states)}
+        act = prob.actuator(theta)
+        if act is not None and act.carried:
+            for rec, pos in zip(prob.records, prob.positions(theta)):
+                init[rec.name]["position"] = pos
         return WholeResult(f.type, f.slope_down, f.d_plus, f.d_minus, tuple(float(c) for c in h),
                            g.num, g.den, g.delay, str(prob.structure), ci, float(np.sqrt(s2)),
-                           float(np.sqrt(np.mean(r * r))), int(r.size), init, tuple(table), tuple(warnings))
+                           float(np.sqrt(np.mean(r * r))), int(r.size), init, tuple(table), tuple(warnings), act)
 
     @staticmethod
     def _intervals(prob: _Problem, theta, h) -> tuple[dict, float, np.ndarray, list]:
@@ -462,7 +487,7 @@ class WholeModelFit:
         r = prob.full_residual(full)
         n, k = r.size, full.size
         s2 = float(r @ r) / max(n - k, 1)
-        jac = _jacobian(prob.full_residual, full)
+        jac = central_jacobian(prob.full_residual, full)
         warnings = []
         # columns on one scale before inverting: h_bar's high powers make J's columns differ by many
         # orders of magnitude, and a pseudo-inverse would then zero whole directions (intervals of
@@ -482,8 +507,9 @@ class WholeModelFit:
         cov = cov * max(tau, 1.0)
         z = special.ndtri(0.975)
         # intervals of the reported quantities by the delta method on the outer parameters
-        grads = {"d_plus": _grad(lambda t: t[0], full), "slope_down": _grad(lambda t: np.exp(t[1]), full),
-                 "d_minus": _grad(lambda t: t[0] - np.exp(t[2]), full)}
+        grads = {"d_plus": central_grad(lambda t: t[0], full),
+                 "slope_down": central_grad(lambda t: np.exp(t[1]), full),
+                 "d_minus": central_grad(lambda t: t[0] - np.exp(t[2]), full)}
         ci = {}
         for name, (value, grad) in grads.items():
             sd = float(np.sqrt(max(grad @ cov @ grad, 0.0)))
@@ -634,51 +660,6 @@ def _other_origin(prob: _Problem, theta, lo, hi, max_nfev: int):
         if 2 * sol.cost < best * (1 - 1e-6):
             best, found = 2 * sol.cost, sol.x
     return found
-
-
-def correlation_time(residual, lengths, max_lag: int = 100) -> float:
-    """The residual's integrated autocorrelation time ``1 + 2 sum_k rho_k`` (samples), summed over
-    lags until the autocorrelation first turns negative, pooled over the records (``lengths``):
-    the factor by which correlated residuals carry less information than white ones."""
-    pieces = np.split(np.asarray(residual, float), np.cumsum(lengths)[:-1])
-    sums, counts = np.zeros(max_lag + 1), np.zeros(max_lag + 1)
-    for e in pieces:
-        e = e - e.mean()
-        for lag in range(min(max_lag + 1, e.size)):
-            sums[lag] += float(e[lag:] @ e[:e.size - lag])
-            counts[lag] += e.size - lag
-    if sums[0] <= 0:
-        return 1.0
-    rho = (sums / np.maximum(counts, 1)) / (sums[0] / counts[0])
-    tau = 1.0
-    for lag in range(1, max_lag + 1):
-        if counts[lag] == 0 or rho[lag] <= 0:
-            break
-        tau += 2 * rho[lag]
-    return float(tau)
-
-
-def _jacobian(fun, x, rel: float = 1e-6) -> np.ndarray:
-    """Central-difference Jacobian of ``fun`` at ``x``."""
-    f0 = fun(x)
-    jac = np.empty((f0.size, x.size))
-    for i in range(x.size):
-        h = rel * max(abs(x[i]), 1e-3)
-        e = np.zeros_like(x)
-        e[i] = h
-        jac[:, i] = (fun(x + e) - fun(x - e)) / (2 * h)
-    return jac
-
-
-def _grad(g, x, rel: float = 1e-7) -> np.ndarray:
-    """Gradient of the scalar ``g`` at ``x`` (central differences); returns ``(g(x), grad)``."""
-    out = np.zeros_like(x)
-    for i in range(x.size):
-        h = rel * max(abs(x[i]), 1e-3)
-        e = np.zeros_like(x)
-        e[i] = h
-        out[i] = (g(x + e) - g(x - e)) / (2 * h)
-    return float(g(x)), out
 
 
 def fit_records(records, periods: int = 3):

@@ -85,7 +85,7 @@ def fit_clip_added(fitter: WholeModelFit) -> tuple[float, float] | None:
         return None
     lo, hi = prob.clip(x)
     fitter.hold(prob, x, table, f"the input is clipped to [{lo:.4g}, {hi:.4g}] in this fit; F, G and h are "
-                                "fitted with it, and the model here leaves it out")
+                                "fitted with it, and the model keeps it")
     return lo, hi
 
 

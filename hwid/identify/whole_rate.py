@@ -195,4 +195,4 @@ def _keep(fitter: WholeModelFit, prob, x, table) -> None:
     the result is read: whole.h5, the JSON's notes)."""
     memory = "carried over from record to record" if prob.carried else "set at each record's first input"
     fitter.hold(prob, x, table, f"the input slews at {prob.rate(x):.4g} units/s in this fit (the actuator's "
-                                f"position {memory}); F, G and h are fitted with it, and the model here leaves it out")
+                                f"position {memory}); F, G and h are fitted with it, and the model keeps it")

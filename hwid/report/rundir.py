@@ -28,7 +28,7 @@ from hwid import HwidError, config, paper
 from hwid.blocks.linear import LinearBlock
 from hwid.blocks.static import PiecewiseH, PolynomialH
 from hwid.identify.result import HistoryResult, LinearResult, NonlinearResult, WholeResult
-from hwid.model import HWModel, InputNonlinearity, from_config
+from hwid.model import Actuator, HWModel, InputNonlinearity, from_config
 from hwid.plant import Record
 from hwid.results import (ResultsError, open_results, read_batch_summary, read_compare, read_diagnosis, read_dict,
                           read_history, read_linear, read_nonlinear, read_records, read_whole)
@@ -207,4 +207,4 @@ def _model_from_dict(d: dict) -> HWModel:
     return HWModel(InputNonlinearity(str(f["type"]), float(f["slope_up"]), float(f["slope_down"]),
                                      float(f["d_plus"]), float(f["d_minus"])),
                    LinearBlock(floats(lin["num"]), floats(lin["den"]), float(lin["delay"])),
-                   h)
+                   h, Actuator.from_dict(d.get("actuator")))
