@@ -18,6 +18,7 @@ from pathlib import Path
 
 from hwid.plant import make_plant
 from hwid.results import write_simulation
+from hwid.rundir import RIG_JOURNAL, SIMULATION
 
 
 def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
@@ -31,13 +32,13 @@ def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
     if cfg.plant.kind == "recorded":
         from hwid.recorded import load_records
         records = load_records(cfg)
-        paths = {"simulation": write_simulation(out / "simulation.h5", cfg, records, None)}
+        paths = {"simulation": write_simulation(out / SIMULATION, cfg, records, None)}
         ident = identify(cfg, records=records, out_dir=out, echo=echo)
     else:
         from hwid.simulate import truth
-        plant = make_plant(cfg, journal_dir=out / "rig_journal")
+        plant = make_plant(cfg, journal_dir=out / RIG_JOURNAL)
         ident = identify(cfg, plant=plant, out_dir=out, echo=echo)
-        paths = {"simulation": write_simulation(out / "simulation.h5", cfg, ident.nonlinear_records, truth(cfg))}
+        paths = {"simulation": write_simulation(out / SIMULATION, cfg, ident.nonlinear_records, truth(cfg))}
     paths.update(ident.paths)
     times["identification"] = time.perf_counter() - t0
     echo(f"model: {ident.route} ({ident.why}; {times['identification']:.1f} s)")

@@ -30,6 +30,7 @@ import numpy as np
 from hwid import HwidError, __version__
 from hwid.identify.result import HistoryResult, LinearResult, NonlinearResult, WholeResult, plain
 from hwid.plant import Record
+from hwid.rundir import NONLINEAR
 
 FORMAT = 1
 LIBVER = ("v110", "latest")   # HDF5 >= 1.10 object layout: checksummed metadata
@@ -345,7 +346,7 @@ def write_nonlinear(path: str | Path, cfg, result: NonlinearResult, records=()) 
     ``result`` (the plain data of :meth:`NonlinearResult.to_dict`) and group ``experiments`` (the
     staircase records)."""
     path = Path(path)
-    out = path if path.suffix == ".h5" else path / "nonlinear.h5"
+    out = path if path.suffix == ".h5" else path / NONLINEAR
     d = result.to_dict()
     fit = d.pop("fit")
     with atomic_h5(out) as f:
@@ -364,7 +365,7 @@ def read_nonlinear(path: str | Path, cfg=None) -> NonlinearResult:
     """The :class:`NonlinearResult` of ``nonlinear.h5`` (or of a directory holding it)."""
     path = Path(path)
     if path.is_dir():
-        path = path / "nonlinear.h5"
+        path = path / NONLINEAR
     with open_results(path, "nonlinear", cfg) as f:
         if "result" not in f:
             raise ResultsError(f"{path}: holds no stage-1 result")

@@ -171,6 +171,7 @@ def identify_from_logs(cfg, records, out: Path, echo) -> tuple:
     from hwid.diagnose.sim_side import origin_of
     from hwid.identify.path import identify
     ident = identify(cfg, records=records, out_dir=out, echo=echo, stage_results=False)
+    echo(f"identified the model by the {ident.route} route: {ident.why}")
     model, origin = origin_of(ident, echo)
     model, notes = without_slow_pairs(model, 2 * np.pi / max(p.u.size * p.dt for p in ident.records), echo,
                                       "the records (2 pi / their longest)")

@@ -19,6 +19,7 @@ from hwid import HwidError, config
 from hwid.identify.path import g_undetermined  # noqa: F401  (where the diagnosis's tests look for it)
 from hwid.model import HWModel, from_config
 from hwid.results import read_linear, read_nonlinear, read_whole, whole_role
+from hwid.rundir import LINEAR, NONLINEAR, WHOLE
 
 
 def model_from_yaml(path: Path) -> HWModel:
@@ -46,18 +47,18 @@ def model_from_run(path: Path, echo=print) -> tuple[HWModel, dict]:
     the stages could not give one), else its two stages' results (with the input dead zone stage 1
     was identified behind)."""
     from hwid.identify.path import stages_model
-    whole = path / "whole.h5"
-    stages = all((path / name).exists() for name in ("nonlinear.h5", "linear.h5"))
+    whole = path / WHOLE
+    stages = all((path / name).exists() for name in (NONLINEAR, LINEAR))
     if whole.exists() and (not stages or whole_role(whole) == "model"):
         res = read_whole(whole)
         return res.model(), {"source": "results", "path": str(path), "fit": "whole", "notes": [],
                              "starts": dict(res.initial_states)}
-    for name in ("nonlinear.h5", "linear.h5"):
+    for name in (NONLINEAR, LINEAR):
         if not (path / name).exists():
             raise HwidError(f"--model {path}: no {name} (nor whole.h5) in that directory (write them with 'hwid run')")
-    nonlinear = read_nonlinear(path / "nonlinear.h5")
+    nonlinear = read_nonlinear(path / NONLINEAR)
     notes: list = []
-    model = stages_model(nonlinear, read_linear(path / "linear.h5"), notes)
+    model = stages_model(nonlinear, read_linear(path / LINEAR), notes)
     for note in notes:
         echo(note)
     return model, {"source": "results", "path": str(path), "w_range": [float(x) for x in nonlinear.w_range],

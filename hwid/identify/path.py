@@ -36,6 +36,7 @@ import numpy as np
 
 from hwid import HwidError
 from hwid.model import Actuator, HWModel
+from hwid.rundir import HISTORY, LINEAR, NONLINEAR, RIG_JOURNAL, WHOLE
 
 #: stage 2's sines shrink by this factor while their output rests on a sensor rail, at most
 #: :data:`RAIL_TRIES` times (:func:`sines_off_the_rails`)
@@ -107,7 +108,7 @@ def identify(cfg, *, plant=None, records=None, out_dir=None, echo=print, stage_r
     else:
         if plant is None:
             from hwid.plant import make_plant
-            plant = make_plant(cfg, journal_dir=None if out is None else out / "rig_journal")
+            plant = make_plant(cfg, journal_dir=None if out is None else out / RIG_JOURNAL)
         ident = _from_plant(cfg, plant, out, echo)
     return assessed(ident, echo)
 
@@ -150,7 +151,7 @@ def _from_plant(cfg, plant, out: Path | None, echo) -> Identification:
         drive = ThroughDeadZone(plant, ahead.delta)
     paths = {}
     if out is not None:
-        paths["nonlinear"] = write_nonlinear(out / "nonlinear.h5", cfg, nonlinear, nl_records)
+        paths["nonlinear"] = write_nonlinear(out / NONLINEAR, cfg, nonlinear, nl_records)
     echo(f"stage 1: {nonlinear.type}, d+ = {nonlinear.d_plus:.4f}, S^d = {nonlinear.slope_down:.4f}, "
          f"d- = {nonlinear.d_minus:.4f}, degree {nonlinear.degree} ({time.perf_counter() - t0:.1f} s)")
     base = dict(nonlinear=nonlinear, nonlinear_records=tuple(nl_records), paths=paths)
@@ -174,7 +175,7 @@ def _from_plant(cfg, plant, out: Path | None, echo) -> Identification:
         lin_records = [drive.sent.get(r.name, r) for r in lin_records]
     if out is not None:
         from hwid.results import write_linear
-        paths["linear"] = write_linear(out / "linear.h5", cfg, linear, lin_records)
+        paths["linear"] = write_linear(out / LINEAR, cfg, linear, lin_records)
     echo(f"stage 2: G(jw) at {len(linear.frequencies)} frequencies; G = "
          f"{list(np.round(linear.parametric.get('num', []), 4))}/{list(np.round(linear.parametric.get('den', []), 4))}")
     for w in linear.warnings:
@@ -263,13 +264,10 @@ def _whole_instead(cfg, records, out, why: str, echo, notes: list, base: dict) -
     """The model fitted whole to the staircases and sines, with the input's slew rate from the start,
     where the two stages cannot stand for the plant (``why``): the records still hold its response."""
     from hwid.identify.whole import WholeModelFit
-    from hwid.identify.whole_rate import fit_rate_first
     echo(f"{why}: the model is fitted whole to the staircases and sines, with the input's slew rate")
     records = [r for r in records if r.y is not None]
     t0 = time.perf_counter()
-    fitter = WholeModelFit.from_config(cfg, staged=True)
-    fit_rate_first(fitter, records)
-    res, paths = _said(cfg, fitter, out, echo, t0)
+    res, paths = _said(cfg, WholeModelFit.from_config(cfg, staged=True).fit_rate_first(records), out, echo, t0)
     model = res.model()
     w = np.concatenate([model.input.apply(model.actuate(r.u, r.dt)) for r in records])   # the w the records reached
     u = np.concatenate([r.u for r in records])
@@ -308,7 +306,7 @@ def _said(cfg, fitter, out, echo, t0: float, role: str = "model"):
     paths = {}
     if out is not None:
         from hwid.results import write_whole
-        paths["whole"] = write_whole(out / "whole.h5", cfg, res, role)
+        paths["whole"] = write_whole(out / WHOLE, cfg, res, role)
     act = res.actuator
     echo(f"whole model ({time.perf_counter() - t0:.1f} s): {res.type}, d+ = {res.d_plus:.4g}, d- = {res.d_minus:.4g}, "
          f"S^d = {res.slope_down:.4g}, h degree {len(res.h_coefficients) - 1}, G {res.structure}"
@@ -346,7 +344,6 @@ def _from_records(cfg, records, out: Path | None, echo, stage_results: bool) -> 
     u = np.concatenate([p.u for p in fit])
     why = ("a recorded plant: the whole model (G's delay, the input's slew rate and clip where the records "
            f"show them) fitted on {'the fit part' if held else 'all the records'}; {how_borders}")
-    echo(f"model: the whole fit ({why})")
     return Identification(res.model(), "whole", why, records=tuple(fit), held_out=tuple(held),
                           starts=dict(res.initial_states), notes=tuple(notes + list(res.warnings)), whole=res,
                           u_range=(float(u.min()), float(u.max())), split=how,
@@ -359,8 +356,6 @@ def _whole_on_records(cfg, pieces, echo):
     criterion prefers them. ``(fitter, how the borders started)``."""
     from hwid.identify.history import identify_recorded
     from hwid.identify.whole import WholeModelFit
-    from hwid.identify.whole_clip import fit_clip_added
-    from hwid.identify.whole_rate import fit_rate_added
     from hwid.model import InputNonlinearity
     try:
         hist = identify_recorded(cfg, pieces)
@@ -375,15 +370,10 @@ def _whole_on_records(cfg, pieces, echo):
             borders, how = None, "stage 1 from its levels is a misfit: both types tried from a grid of borders"
         echo(f"stage 1 from the fit part's levels: {hist.type}, d+ = {hist.d_plus:.4g}, d- = {hist.d_minus:.4g}, "
              f"S^d = {hist.slope_down:.4g}" + (" (misfit: not used)" if hist.misfit else ": the borders' start"))
-    # G's pure delay fitted by name as well: a rational G alone stands in for a delay with fast
-    # poles the plant does not have, and then no excess phase is left for time_delay to name
-    fitter = WholeModelFit.from_config(cfg, staged=True).fit_delay_added(pieces, borders=borders)
-    # a slow actuator the fit without it would mimic with a G many times slower than the plant's
-    fit_rate_added(fitter)
-    # an actuator that stops short, which the fit without it mimics with a bent F, G and h (and a
-    # slew): its limits replace a rate that stood in for them
-    fit_clip_added(fitter)
-    return fitter, how
+    # G's pure delay fitted by name as well (a rational G alone stands in for a delay with fast
+    # poles the plant does not have, and then no excess phase is left for time_delay to name),
+    # then the actuator's slew rate and clip
+    return WholeModelFit.from_config(cfg, staged=True).fit_actuated(pieces, borders=borders), how
 
 
 def _recorded_stages(cfg, records, out: Path | None, echo) -> dict:
@@ -399,7 +389,7 @@ def _recorded_stages(cfg, records, out: Path | None, echo) -> dict:
     found["history"] = hist
     if out is not None:
         from hwid.results import write_history
-        found["paths"]["history"] = write_history(out / "history.h5", cfg, hist)
+        found["paths"]["history"] = write_history(out / HISTORY, cfg, hist)
     echo(f"stage 1 from the levels: {hist.type}, d+ = {hist.d_plus:.4g}, d- = {hist.d_minus:.4g}, dead band "
          f"{hist.dead_band:.4g} [{hist.ci['dead_band'][0]:.4g}, {hist.ci['dead_band'][1]:.4g}], "
          f"S^d = {hist.slope_down:.4g}{' (MISFIT)' if hist.misfit else ''}")
@@ -416,7 +406,7 @@ def _recorded_stages(cfg, records, out: Path | None, echo) -> dict:
     found["linear"] = lin
     if out is not None:
         from hwid.results import write_linear
-        found["paths"]["linear"] = write_linear(out / "linear.h5", cfg, lin, pieces)
+        found["paths"]["linear"] = write_linear(out / LINEAR, cfg, lin, pieces)
     echo(f"stage 2 from {len(lin.frequencies)} periodic stretch(es): G(jw) at "
          f"{', '.join(f'{w:.4g}' for w in lin.frequencies)} rad/s")
     for w in lin.warnings:
