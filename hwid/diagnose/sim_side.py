@@ -162,8 +162,10 @@ def diagnosis_baseline(model: HWModel, records, starts: dict | None, echo=print)
 
 
 def _actuator_text(act) -> str:
-    parts = ([f"clip [{act.clip[0]:.4g}, {act.clip[1]:.4g}]"] if act.clip else []) + \
-        ([f"slew {act.rate:.4g} units/s"] if act.rate else []) + ([f"dead zone {act.deadzone:.4g}"] if act.deadzone else [])
+    """The actuator's blocks in words."""
+    parts = [f"clip [{act.clip[0]:.4g}, {act.clip[1]:.4g}]"] if act.clip else []
+    parts += [f"slew {act.rate:.4g} units/s"] if act.rate else []
+    parts += [f"dead zone {act.deadzone:.4g}"] if act.deadzone else []
     return ", ".join(parts)
 
 

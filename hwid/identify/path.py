@@ -35,13 +35,9 @@ from pathlib import Path
 import numpy as np
 
 from hwid import HwidError
+from hwid.identify.defaults import RAIL_SHRINK, RAIL_TRIES
 from hwid.model import Actuator, HWModel
 from hwid.rundir import HISTORY, LINEAR, NONLINEAR, RIG_JOURNAL, WHOLE
-
-#: stage 2's sines shrink by this factor while their output rests on a sensor rail, at most
-#: :data:`RAIL_TRIES` times (:func:`sines_off_the_rails`)
-RAIL_SHRINK = 0.7
-RAIL_TRIES = 3
 
 
 @dataclass(frozen=True)
@@ -312,7 +308,8 @@ def _said(cfg, fitter, out, echo, t0: float, role: str = "model"):
          f"S^d = {res.slope_down:.4g}, h degree {len(res.h_coefficients) - 1}, G {res.structure}"
          + (f" with a delay of {res.delay:.4g} s" if res.delay > 0 else "") + f", sigma {res.sigma:.4g}"
          + (f"; the input slews at {act.rate:.4g} units/s" if act is not None and act.rate else "")
-         + (f"; the input is clipped to [{act.clip[0]:.4g}, {act.clip[1]:.4g}]" if act is not None and act.clip else ""))
+         + (f"; the input is clipped to [{act.clip[0]:.4g}, {act.clip[1]:.4g}]"
+            if act is not None and act.clip else ""))
     for w in res.warnings:
         echo(f"warning: {w}")
     return res, paths

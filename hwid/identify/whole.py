@@ -31,6 +31,7 @@ import numpy as np
 from scipy import optimize, special
 
 from hwid import HwidError
+from hwid.identify.defaults import MAX_DEGREE, MAX_NFEV
 from hwid.identify.g_structure import STRUCTURES, Structure, g_from_params, g_params_from, structure_of  # noqa: F401
 from hwid.identify.result import WholeResult
 from hwid.identify.whole_problem import Problem, best_states, border_grid, extent, table_row
@@ -62,8 +63,8 @@ class WholeModelFit:
         type, structure and degree).
     """
 
-    def __init__(self, max_degree: int = 5, structures: Sequence[Structure] | None = None, delay: bool = False,
-                 types: Sequence[str] = ("backlash", "backlash_inverse"), max_nfev: int = 200,
+    def __init__(self, max_degree: int = MAX_DEGREE, structures: Sequence[Structure] | None = None,
+                 delay: bool = False, types: Sequence[str] = ("backlash", "backlash_inverse"), max_nfev: int = MAX_NFEV,
                  staged: bool = False):
         self.max_degree = max_degree
         self.staged = staged
@@ -71,6 +72,12 @@ class WholeModelFit:
         self.delay = delay
         self.types = types
         self.max_nfev = max_nfev
+
+    def variant(self, structures=None, delay: bool | None = None, types=None) -> "WholeModelFit":
+        """The same estimator with its structures, delay or types replaced (None: kept)."""
+        return WholeModelFit(self.max_degree, self.structures if structures is None else structures,
+                             self.delay if delay is None else delay, self.types if types is None else types,
+                             self.max_nfev, self.staged)
 
     @classmethod
     def from_config(cls, cfg, staged: bool = False) -> "WholeModelFit":
@@ -175,7 +182,7 @@ class WholeModelFit:
         self.fit_clip_added()
         return self
 
-    def _start(self, records, kind, structure, start: HWModel | None, borders=None) -> np.ndarray:
+    def start_values(self, records, kind, structure, start: HWModel | None, borders=None) -> np.ndarray:
         """Outer start values: from ``start`` where given, else from ``borders`` (G at its default
         start), else the best of a coarse border grid (h_bar of the highest degree solved for, G at
         its default start)."""
@@ -297,11 +304,11 @@ class _Search:
 
     def path(self, kind, structure, degs, first=None) -> list:
         """Fits of h_bar's degrees ``degs`` in order, each from the start (``first``, or
-        :meth:`WholeModelFit._start`'s) and from the one before."""
+        :meth:`WholeModelFit.start_values`'s) and from the one before."""
         fitter, records, delay = self.fitter, self.records, self.fitter.delay
         if first is None:
             first = best_states(Problem(records, kind, structure, max(degs), delay),
-                                fitter._start(records, kind, structure, self.start, self.borders))
+                                fitter.start_values(records, kind, structure, self.start, self.borders))
         theta0, rows = None, []
         for degree in degs:
             prob = Problem(records, kind, structure, degree, delay)

@@ -14,16 +14,16 @@ must earn them back on the validation part like any other effect.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hwid.identify.defaults import CLIP_POINTS
 from hwid.identify.g_structure import STRUCTURES
-from hwid.identify.whole import WholeModelFit
 from hwid.identify.whole_problem import Problem, best_states, border_grid, descend, extent, table_row
 
-#: the limits the fit starts from: this many places of each, from the input's centre to its end,
-#: the last beyond the end (no limit on that side)
-CLIP_POINTS = 5
+if TYPE_CHECKING:      # the estimator whose step this is (it imports this module when run)
+    from hwid.identify.whole import WholeModelFit
 
 
 def fit_clip_added(fitter: WholeModelFit) -> tuple[float, float] | None:
@@ -106,7 +106,7 @@ def _grid_start(fitter: WholeModelFit, prob: Problem) -> np.ndarray:
     best limits for these (a clip moves where the borders fit best, and the borders where the
     limits do)."""
     k = prob.clip_at
-    start = WholeModelFit(fitter.max_degree, [prob.structure], prob.with_delay, (prob.type,))._start(
+    start = fitter.variant([prob.structure], prob.with_delay, (prob.type,)).start_values(
         prob.records, prob.type, prob.structure, None)
     theta = _best_limits(prob, np.concatenate([start[:k], [0.0, 0.0], start[k:]]))
     trials = []

@@ -20,17 +20,9 @@ import dataclasses
 
 import numpy as np
 
+from hwid.identify.defaults import COARSE_SAMPLES, POLISH_BEST, POLISH_NFEV, READ_ALL
 from hwid.identify.whole_problem import table_row
 from hwid.plant import Record
-
-#: records of at most this many samples in all are descended on every sample
-READ_ALL = 20000
-#: the coarse descent reads about this many samples in all
-COARSE_SAMPLES = 8000
-#: the most function evaluations of the polish on every sample (each with its Jacobian), and the
-#: most coarse fits polished
-POLISH_NFEV = 20
-POLISH_BEST = 4
 
 
 def thinning(records) -> int:

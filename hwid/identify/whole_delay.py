@@ -10,13 +10,16 @@ delay as the fallback.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import optimize
 
 from hwid.identify.g_structure import STRUCTURES, Structure, g_from_params, g_params_from
-from hwid.identify.whole import WholeModelFit
 from hwid.identify.whole_problem import Problem, descend, extent, table_row
+
+if TYPE_CHECKING:      # the estimator whose step this is (it imports this module when run)
+    from hwid.identify.whole import WholeModelFit
 
 
 def fit_delay_added(fitter: WholeModelFit, records, borders=None) -> WholeModelFit:
@@ -32,12 +35,11 @@ def fit_delay_added(fitter: WholeModelFit, records, borders=None) -> WholeModelF
     type, degree, borders, h_bar and initial states are the delayed fits' starts; only G and the
     delay are new, so no staged selection is run again."""
     f = fitter
-    plain = WholeModelFit(f.max_degree, f.structures, False, f.types, f.max_nfev, f.staged).fit(records,
-                                                                                             borders=borders)
+    plain = f.variant(delay=False).fit(records, borders=borders)
     base, theta = plain.problem_, np.asarray(plain.theta_, float)
     records = base.records
     span, dt, width = extent(records)
-    delayed = WholeModelFit(f.max_degree, f.structures, True, (base.type,), f.max_nfev, f.staged)
+    delayed = f.variant(delay=True, types=(base.type,))
     probs = [Problem(records, base.type, s, base.degree, True)
              for s in (f.structures or STRUCTURES) if s.order <= base.structure.order]
     fits = descend(probs, [_delayed_start(base, theta, p.structure, span, dt) for p in probs], f.max_nfev)

@@ -13,18 +13,18 @@ validation part like any other effect.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hwid.identify.defaults import FOLLOW_SHARE, RATE_POINTS
+from hwid.identify.g_structure import STRUCTURES
 from hwid.identify.whole_coarse import coarse_first
 from hwid.identify.whole_delay import pole_for_rhp_zero
-from hwid.identify.g_structure import STRUCTURES
-from hwid.identify.whole import WholeModelFit
 from hwid.identify.whole_problem import Problem, best_states, descend, extent, table_row
 
-#: the rates the fit starts from: this many, from crossing the input's range in two minutes to
-#: crossing it in ten samples
-RATE_POINTS = 8
+if TYPE_CHECKING:      # the estimator whose step this is (it imports this module when run)
+    from hwid.identify.whole import WholeModelFit
 
 
 def fit_rate_added(fitter: WholeModelFit) -> float | None:
@@ -33,7 +33,7 @@ def fit_rate_added(fitter: WholeModelFit) -> float | None:
     stands in for the slow poles the fit without it added). The fit without the rate is no start:
     it has bent F, G and h to mimic the slow actuator (the rig above came out a Backlash-Inverse
     of slope 4.3 for a Backlash of slope 0.67), so each type and structure starts from the border
-    grid and G's default (:meth:`WholeModelFit._start`), at the best of ``RATE_POINTS`` rates,
+    grid and G's default (:meth:`WholeModelFit.start_values`), at the best of ``RATE_POINTS`` rates,
     and every one is descended (on a third-order rig slewing at 0.22 units/s, the best four
     starts all stopped in other valleys: a Backlash-Inverse at 0.06 units/s, 4.8x the noise; the
     fourteen, 5-8 s in all, found 0.236 at 1.45x), and from the two best borders, rates and
@@ -65,10 +65,6 @@ def fit_rate_added(fitter: WholeModelFit) -> float | None:
     _keep(fitter, prob, x, table)
     return prob.rate(x)
 
-
-#: the least share of the commanded input's range an actuator slewing at a fitted rate must reach
-#: for the rate to be kept (:func:`_follows`)
-FOLLOW_SHARE = 0.5
 
 
 def _follows(prob, theta) -> bool:
@@ -118,7 +114,7 @@ def _joint_combos(fitter: WholeModelFit, records, kind: str, ref, degree: int, w
     """``(carried, borders, log rate)`` over the border grid, the rates and both memories, best
     first, each scored on structure ``ref``'s default G."""
     combos = []
-    grids = WholeModelFit(fitter.max_degree, [ref], with_delay, (kind,)).grid(records, ref)
+    grids = fitter.variant([ref], with_delay, (kind,)).grid(records, ref)
     for carried in (False, True):
         prob = Problem(records, kind, ref, degree, with_delay, True, carried=carried)
         for grid in grids:
@@ -153,7 +149,7 @@ def _rate_fits(fitter: WholeModelFit, records, degree: int, with_delay: bool, ma
         joint = _joint_combos(fitter, records, kind, structures[0], degree, with_delay, rates)[:joint_starts] \
             if joint_starts else []
         for s in structures:
-            grid = WholeModelFit(fitter.max_degree, [s], with_delay, (kind,))._start(records, kind, s, None)
+            grid = fitter.variant([s], with_delay, (kind,)).start_values(records, kind, s, None)
             trials = []
             for carried in (False, True):
                 prob = Problem(records, kind, s, degree, with_delay, True, carried=carried)
