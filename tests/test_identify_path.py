@@ -73,6 +73,7 @@ def test_run_and_diagnose_identify_the_same_model_from_a_log(tmp_path):
     done = run(cfg, tmp_path / "run", report=False, echo=said.append)
     ident = done["identification"]
     assert ident.route == "whole" and ident.held_out and ident.split
+    assert not {r.name for r in ident.held_out} & {r.name for r in ident.records}   # no held-out block takes a fit start
     assert any(line.startswith("model: whole") for line in said)
     from_run, _ = model_from_run(tmp_path / "run", echo=lambda *a: None)
     records = [r for r in load_records(cfg) if r.y is not None]

@@ -73,21 +73,25 @@ def plan(records) -> tuple[list[tuple], str]:
 
 def fit_pieces(parts) -> list:
     """The records the model is identified from: the fit records, or a split record's fit blocks
-    as records of their own."""
+    as records of their own (``name:fit0``, ``name:fit1``, ...)."""
+    return _pieces(parts, "fit", "fit")
+
+
+def held_out_pieces(parts) -> list:
+    """The held-out records as :func:`fit_pieces` gives the fit ones: the validation records, or a
+    split record's validation blocks as records of their own (``name:held0``, ...)."""
+    return _pieces(parts, "validation", "held")
+
+
+def _pieces(parts, role: str, tag: str) -> list:
     out = []
-    for r, role, samples in parts:
-        if role != "fit":
+    for r, part_role, samples in parts:
+        if part_role != role:
             continue
         if samples.all():
             out.append(r)
             continue
         idx = np.flatnonzero(np.diff(np.concatenate([[0], samples.astype(int), [0]])))
         for k, (a, b) in enumerate(zip(idx[::2], idx[1::2])):
-            out.append(replace(r, name=f"{r.name}:fit{k}", u=r.u[a:b], y=r.y[a:b], attrs=dict(r.attrs)))
+            out.append(replace(r, name=f"{r.name}:{tag}{k}", u=r.u[a:b], y=r.y[a:b], attrs=dict(r.attrs)))
     return out
-
-
-def held_out_pieces(parts) -> list:
-    """The held-out part of :func:`plan`'s parts as records of their own (a split record's
-    validation blocks each a record), as :func:`fit_pieces` gives the fit part."""
-    return fit_pieces([(r, "fit" if role == "validation" else "other", samples) for r, role, samples in parts])
