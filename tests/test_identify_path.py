@@ -115,3 +115,22 @@ def test_an_actuator_whose_absence_explodes_the_model_stays_in_the_baseline():
             assert "above the output's own spread" in notes[0]
         else:
             assert baseline.actuator is None and taken["input_clip_taken_out"] == list(clip)
+
+
+@pytest.mark.slow
+def test_a_recorded_runs_model_is_one_diagnose_accepts(tmp_path):
+    """``hwid diagnose --model RUN_DIR`` on the run directory of a recorded config whose stages
+    give no model (levels only, the whole fit not enabled): the diagnosis reads the run's whole
+    fit and, the log being the plant's own with white noise, names nothing."""
+    from hwid.cli import main
+    _lab_config(tmp_path, whole_enabled=False)
+    for argv in (["run", str(tmp_path / "log.yaml"), "--out", str(tmp_path / "run")],
+                 ["diagnose", str(tmp_path / "log.yaml"), "--model", str(tmp_path / "run"), "--out",
+                  str(tmp_path / "d"), "--json", str(tmp_path / "d.json")]):
+        with pytest.raises(SystemExit) as exit_:
+            main(argv)
+        assert exit_.value.code in (0, None)
+    import json
+    s = json.loads((tmp_path / "d.json").read_text())
+    assert s["model"]["fit"] == "whole" and s["model"]["source"] == "results"
+    assert s["verdict"]["effect"] == "none"
