@@ -387,9 +387,11 @@ def _recorded_stages(cfg, records, out: Path | None, echo) -> dict:
     if out is not None:
         from hwid.results import write_history
         found["paths"]["history"] = write_history(out / HISTORY, cfg, hist)
+    band = hist.ci.get("dead_band")      # None where the levels cannot determine it
     echo(f"stage 1 from the levels: {hist.type}, d+ = {hist.d_plus:.4g}, d- = {hist.d_minus:.4g}, dead band "
-         f"{hist.dead_band:.4g} [{hist.ci['dead_band'][0]:.4g}, {hist.ci['dead_band'][1]:.4g}], "
-         f"S^d = {hist.slope_down:.4g}{' (MISFIT)' if hist.misfit else ''}")
+         + (f"{hist.dead_band:.4g} [{band[0]:.4g}, {band[1]:.4g}]" if band is not None else
+            f"undetermined (fitted {hist.dead_band:.4g}, not a measurement)")
+         + f", S^d = {hist.slope_down:.4g}{' (MISFIT)' if hist.misfit else ''}")
     for w in hist.warnings:
         echo(f"warning: {w}")
     from hwid.identify.periodic import identify_periodic, periodic_pieces
