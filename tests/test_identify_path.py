@@ -74,6 +74,13 @@ def test_run_and_diagnose_identify_the_same_model_from_a_log(tmp_path):
     ident = done["identification"]
     assert ident.route == "whole" and ident.held_out and ident.split
     assert not {r.name for r in ident.held_out} & {r.name for r in ident.records}   # no held-out block takes a fit start
+    # each held-out block from where the fitted model, run through the fit blocks before it, puts
+    # the gear and G: the model predicts the held-out part to the log's noise (0.01)
+    res = []
+    for r in ident.held_out:
+        st = ident.starts[r.name]
+        res.append(r.y - ident.model.simulate(r.u, r.dt, st["gear"], st["rest"], position=st.get("position")).x)
+    assert float(np.sqrt(np.mean(np.concatenate(res) ** 2))) < 0.0115
     assert any(line.startswith("model: whole") for line in said)
     from_run, _ = model_from_run(tmp_path / "run", echo=lambda *a: None)
     records = [r for r in load_records(cfg) if r.y is not None]

@@ -329,7 +329,7 @@ def _from_records(cfg, records, out: Path | None, echo, stage_results: bool) -> 
         parts, how = plan(records)
         fit, held = fit_pieces(parts), held_out_pieces(parts)
     except HwidError as err:
-        fit, held, how = list(records), [], ""
+        parts, fit, held, how = [], list(records), [], ""
         notes.append(f"{err}: the model is fitted on all of them and none is held out")
         echo(notes[-1])
     base: dict = {"paths": {}}
@@ -338,13 +338,43 @@ def _from_records(cfg, records, out: Path | None, echo, stage_results: bool) -> 
     t0 = time.perf_counter()
     fitter, how_borders = _whole_on_records(cfg, fit, echo)
     res, paths = _said(cfg, fitter, out, echo, t0)
+    starts = {**held_starts(res.model(), parts, res.initial_states), **res.initial_states} if held else \
+        dict(res.initial_states)
     u = np.concatenate([p.u for p in fit])
     why = ("a recorded plant: the whole model (G's delay, the input's slew rate and clip where the records "
            f"show them) fitted on {'the fit part' if held else 'all the records'}; {how_borders}")
-    return Identification(res.model(), "whole", why, records=tuple(fit), held_out=tuple(held),
-                          starts=dict(res.initial_states), notes=tuple(notes + list(res.warnings)), whole=res,
+    return Identification(res.model(), "whole", why, records=tuple(fit), held_out=tuple(held), starts=starts, notes=tuple(notes + list(res.warnings)), whole=res,
                           u_range=(float(u.min()), float(u.max())), split=how,
                           **{**base, "paths": {**base["paths"], **paths}})
+
+
+def held_starts(model: HWModel, parts, starts: dict) -> dict:
+    """Where each held-out block of a record split in blocks (:func:`hwid.identify.split.plan`)
+    starts, as the fitted ``model`` puts it: the model run through the record from its first fit
+    block's estimated start (``starts``, by piece name), read just before each held block: the
+    gear (F's last output), G's level (its last output, G(0) = 1 as the whole fit normalises it)
+    and, with a slew, the actuator's position. No held-out sample is used; a block's state is then
+    judged from its first sample instead of after a burn-in. Empty where a record's first block
+    has no estimated start."""
+    out: dict = {}
+    for r, role, samples in parts:
+        if role != "validation" or samples.all():
+            continue
+        first = starts.get(f"{r.name}:fit0")
+        if first is None or samples[0]:
+            continue
+        u = np.asarray(r.u, float)
+        sig = model.simulate(u, r.dt, gear=first["gear"], rest=first["rest"], position=first.get("position"))
+        acted = model.actuate(u, r.dt, first.get("position"))
+        idx = np.flatnonzero(np.diff(np.concatenate([[0], samples.astype(int), [0]])))
+        for k, a in enumerate(idx[::2]):
+            if a == 0:
+                continue
+            st = {"gear": float(sig.v[a - 1]), "rest": float(sig.w[a - 1])}
+            if model.actuator is not None and model.actuator.rate is not None:
+                st["position"] = float(acted[a - 1])
+            out[f"{r.name}:held{k}"] = st
+    return out
 
 
 def _whole_on_records(cfg, pieces, echo):
