@@ -48,7 +48,7 @@ def main():
     t0 = time.perf_counter()
     fit = WholeModelFit(max_degree=3, structures=[Structure(1, 0)], types=("backlash",))
     fit.problem_ = None
-    from hwid.identify.whole import _Problem
+    from hwid.identify.whole_problem import Problem as _Problem
     prob = _Problem(records, "backlash", Structure(1, 0), 3, False)
     theta0 = fit._start(records, "backlash", Structure(1, 0), None)
     from scipy import optimize

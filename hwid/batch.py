@@ -31,6 +31,7 @@ import numpy as np
 from hwid import HwidError
 from hwid.progress import Progress
 from hwid.results import write_batch
+from hwid.rundir import BATCH
 from hwid.threads import limit_blas_threads
 
 SPEC = "batch_spec.json"
@@ -312,4 +313,4 @@ def write_batch_h5(out: Path, bp: BatchPlan) -> Path:
             columns[name] = np.array([r["estimates"].get(name, np.nan) for r in rs])
         points.append({"overrides": p, "columns": columns, "summary": summarise(rs, truth_values(c)),
                        "errors": [r["error"] for r in rs if r.get("error")]})
-    return write_batch(out / "batch.h5", bp.cfg, bp.runs, points)
+    return write_batch(out / BATCH, bp.cfg, bp.runs, points)

@@ -9,6 +9,7 @@ from typing import Optional
 import typer
 
 from hwid import HwidError, __version__
+from hwid.rundir import HISTORY, LINEAR, RIG_JOURNAL
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Identify Hammerstein-Wiener systems with Backlash / Backlash-Inverse input "
@@ -85,12 +86,12 @@ def identify_linear(config: Path = typer.Argument(..., help="Config YAML."),
         if cfg.plant.kind == "recorded":    # the records' periodic stretches, with stage 1 from history.h5
             from hwid.identify.periodic import identify_periodic
             from hwid.recorded import load_records
-            hist = results.read_history(nonlinear / "history.h5" if nonlinear.is_dir() else nonlinear, cfg)
+            hist = results.read_history(nonlinear / HISTORY if nonlinear.is_dir() else nonlinear, cfg)
             res, records = identify_periodic(cfg, load_records(cfg), hist)
         else:
             nl = results.read_nonlinear(nonlinear, cfg)
-            res, records = linear_stage.identify_linear(cfg, nl, journal_dir=out / "rig_journal")
-    path = results.write_linear(out / "linear.h5", cfg, res, records)
+            res, records = linear_stage.identify_linear(cfg, nl, journal_dir=out / RIG_JOURNAL)
+    path = results.write_linear(out / LINEAR, cfg, res, records)
     if json_out is not None:
         results.write_json(json_out, res.to_dict())
     for i, w in enumerate(res.frequencies):
@@ -119,7 +120,7 @@ def identify_nonlinear(config: Path = typer.Argument(..., help="Config YAML."),
     if cfg.plant.kind == "recorded":
         _identify_history(cfg, out, json_out)
         return
-    res, records = run_stage1(cfg, data=data, journal_dir=out / "rig_journal")
+    res, records = run_stage1(cfg, data=data, journal_dir=out / RIG_JOURNAL)
     res = deadzone_ahead.noted(cfg, res, records)
     _say_stage1(res, write_nonlinear(out, cfg, res, records), json_out, format_summary(res))
 
@@ -142,7 +143,7 @@ def _identify_history(cfg, out: Path, json_out: Optional[Path]) -> None:
     from hwid.recorded import load_records
     from hwid.results import write_history
     res = identify_recorded(cfg, load_records(cfg))
-    _say_stage1(res, write_history(out / "history.h5", cfg, res), json_out, format_history(res))
+    _say_stage1(res, write_history(out / HISTORY, cfg, res), json_out, format_history(res))
 
 
 def _one_line(msg: str) -> str:

@@ -15,7 +15,7 @@ a normalised Backlash-Inverse has ``slope_up = 1``, ``slope_down = S^d/S^a``, ``
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -118,6 +118,69 @@ class InputNonlinearity:
 
 
 @dataclass(frozen=True)
+class Actuator:
+    """The actuator ahead of F: the command clipped to ``clip = (lo, hi)``, then slewed at most
+    ``rate`` units/s (:func:`hwid.blocks.slew.slewed`), then through a dead zone of half-width
+    ``deadzone`` (:func:`hwid.blocks.deadzone.deadzone`); each None (or 0 for the dead zone) where
+    the actuator has no such block. Not in the paper's structure (eqs. 3a-c start at F): the whole
+    fit (:mod:`hwid.identify.whole`) and stage 1 behind a dead zone
+    (:mod:`hwid.identify.deadzone_ahead`) fit them where the records show one, and the model keeps
+    them, so the model written is the model that was fitted. ``carried``: the fit carried the slew's
+    position over from record to record (a record's start is then given to
+    :meth:`HWModel.simulate` as ``position``)."""
+
+    clip: tuple[float, float] | None = None
+    rate: float | None = None
+    deadzone: float = 0.0
+    carried: bool = False
+
+    def __post_init__(self):
+        if self.clip is not None:
+            lo, hi = (float(c) for c in self.clip)
+            if not lo <= hi:
+                raise ValueError(f"an actuator's clip needs lo <= hi, not [{lo}, {hi}]")
+            object.__setattr__(self, "clip", (lo, hi))
+        if self.rate is not None and not float(self.rate) > 0:
+            raise ValueError(f"an actuator's slew rate must be positive, not {self.rate}")
+        if not float(self.deadzone) >= 0:
+            raise ValueError(f"an actuator's dead zone must be >= 0, not {self.deadzone}")
+
+    @property
+    def empty(self) -> bool:
+        return self.clip is None and self.rate is None and not self.deadzone
+
+    def apply(self, u, dt: float, position: float | None = None) -> np.ndarray:
+        """The command ``u`` as F receives it: clipped, slewed from ``position`` (None: ``u[0]``
+        after the clip, an actuator a driver sets where the record begins), then the dead zone."""
+        from hwid.blocks.deadzone import deadzone
+        from hwid.blocks.slew import slewed
+        u = np.ascontiguousarray(u, dtype=float)
+        if self.clip is not None:
+            u = np.clip(u, *self.clip)
+        if self.rate is not None:
+            u = slewed(u, self.rate, dt, start=position)
+        if self.deadzone:
+            u = deadzone(u, self.deadzone)
+        return u
+
+    def to_dict(self) -> dict:
+        return {"clip": None if self.clip is None else list(self.clip), "rate": self.rate,
+                "deadzone": float(self.deadzone), "carried": bool(self.carried)}
+
+    @classmethod
+    def from_dict(cls, d: dict | None) -> "Actuator | None":
+        """Inverse of :meth:`to_dict`; None for None or an empty actuator."""
+        if not d:
+            return None
+        clip = d.get("clip")
+        clip = None if clip is None or np.size(clip) == 0 else tuple(float(c) for c in np.ravel(clip))
+        rate = d.get("rate")
+        rate = None if rate is None or not np.isfinite(float(rate)) else float(rate)
+        act = cls(clip, rate, float(d.get("deadzone", 0.0) or 0.0), bool(d.get("carried", False)))
+        return None if act.empty else act
+
+
+@dataclass(frozen=True)
 class Signals:
     """The chain's signals on one experiment (eqs. 3a-c): ``v = F[u]``, ``w = G * v``, ``x = h(w)``;
     ``gear`` is F's state after the last sample (None if empty); ``y = x + xi`` when
@@ -132,25 +195,41 @@ class Signals:
 
 @dataclass(frozen=True)
 class HWModel:
-    """A complete (F, G, h) model; ``normalised()`` gives the representative of eqs. (4a-c)."""
+    """A complete (F, G, h) model; ``normalised()`` gives the representative of eqs. (4a-c).
+    ``actuator``: the blocks ahead of F where one was fitted (:class:`Actuator`), else None."""
 
     input: InputNonlinearity
     linear: LinearBlock
     output: PolynomialH | PiecewiseH
+    actuator: Actuator | None = None
 
     def normalised(self) -> "HWModel":
+        """The representative of eqs. (4a-c); the actuator acts on the command, ahead of F's scale,
+        and is kept as it is."""
         k = self.input.scale * self.linear.dc_gain
-        return HWModel(self.input.normalised(), self.linear.normalised(), self.output.scaled(k))
+        return HWModel(self.input.normalised(), self.linear.normalised(), self.output.scaled(k), self.actuator)
+
+    def without_actuator(self) -> "HWModel":
+        """F, G and h alone (the paper's chain)."""
+        return replace(self, actuator=None)
+
+    def actuate(self, u, dt: float, position: float | None = None) -> np.ndarray:
+        """``u`` as F receives it: through the actuator where the model has one, else as it is."""
+        if self.actuator is None:
+            return np.ascontiguousarray(u, dtype=float)
+        return self.actuator.apply(u, dt, position)
 
     def simulate(self, u, dt: float, gear: float | None = None, rest: float | None = None,
-                 noise_rng: np.random.Generator | None = None, noise_std: float = 0.0) -> Signals:
-        """The F -> G -> h chain of eqs. (3a-c) on a sampled input: ``v = F[u]`` from the gear state
+                 noise_rng: np.random.Generator | None = None, noise_std: float = 0.0,
+                 position: float | None = None) -> Signals:
+        """The chain of eqs. (3a-c) on a sampled input, behind the actuator where the model has one
+        (``u`` through :meth:`Actuator.apply` first, its slew from ``position``): ``v = F[u]`` from the gear state
         ``gear`` (None: the operator's default start at ``u[0]``), ``w`` the exact ZOH response of
         G from rest at the input level ``rest`` (None: the equilibrium of ``v[0]``), ``x = h(w)``.
         With ``noise_rng``, also ``y = x + xi``, xi white with standard deviation ``noise_std``:
         bit-identical to ``x + noise_std * noise_rng.standard_normal(n)``, drawn in the chain's own
         pass where it is fused. Every simulation of a model in hwid runs here."""
-        u = np.ascontiguousarray(u, dtype=float)
+        u = self.actuate(u, dt, position)
         fused = self._fused(u, dt, gear, rest, noise_rng, float(noise_std))
         if fused is not None:
             return fused
@@ -200,9 +279,12 @@ class HWModel:
         return self.output(self.linear.dc_gain * self.input.steady(levels, state))
 
     def to_dict(self) -> dict:
-        return {"input_nonlinearity": self.input.to_dict(),
-                "linear": {"num": list(self.linear.num), "den": list(self.linear.den), "delay": self.linear.delay},
-                "output_nonlinearity": self.output.to_dict()}
+        d = {"input_nonlinearity": self.input.to_dict(),
+             "linear": {"num": list(self.linear.num), "den": list(self.linear.den), "delay": self.linear.delay},
+             "output_nonlinearity": self.output.to_dict()}
+        if self.actuator is not None:
+            d["actuator"] = self.actuator.to_dict()
+        return d
 
 
 def from_config(plant_cfg) -> HWModel:

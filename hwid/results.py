@@ -30,6 +30,7 @@ import numpy as np
 from hwid import HwidError, __version__
 from hwid.identify.result import HistoryResult, LinearResult, NonlinearResult, WholeResult, plain
 from hwid.plant import Record
+from hwid.rundir import NONLINEAR
 
 FORMAT = 1
 LIBVER = ("v110", "latest")   # HDF5 >= 1.10 object layout: checksummed metadata
@@ -345,7 +346,7 @@ def write_nonlinear(path: str | Path, cfg, result: NonlinearResult, records=()) 
     ``result`` (the plain data of :meth:`NonlinearResult.to_dict`) and group ``experiments`` (the
     staircase records)."""
     path = Path(path)
-    out = path if path.suffix == ".h5" else path / "nonlinear.h5"
+    out = path if path.suffix == ".h5" else path / NONLINEAR
     d = result.to_dict()
     fit = d.pop("fit")
     with atomic_h5(out) as f:
@@ -364,7 +365,7 @@ def read_nonlinear(path: str | Path, cfg=None) -> NonlinearResult:
     """The :class:`NonlinearResult` of ``nonlinear.h5`` (or of a directory holding it)."""
     path = Path(path)
     if path.is_dir():
-        path = path / "nonlinear.h5"
+        path = path / NONLINEAR
     with open_results(path, "nonlinear", cfg) as f:
         if "result" not in f:
             raise ResultsError(f"{path}: holds no stage-1 result")
@@ -551,13 +552,15 @@ def read_compare(path: str | Path) -> dict:
 
 # ---------------------------------------------------------------------------- whole.h5 (whole model)
 
-def _write_json_result(path: str | Path, cfg, kind: str, result) -> Path:
+def _write_json_result(path: str | Path, cfg, kind: str, result, attrs: dict | None = None) -> Path:
     """A results file whose payload is one result's plain data (``result.to_dict()``) as the root
-    attribute ``result`` (JSON)."""
+    attribute ``result`` (JSON), with ``attrs`` as root attributes."""
     path = Path(path)
     with atomic_h5(path) as f:
         write_provenance(f, kind, cfg)
         f.attrs["result"] = json.dumps(result.to_dict(), default=_json_default)
+        for key, val in (attrs or {}).items():
+            f.attrs[key] = val
     return path
 
 
@@ -569,10 +572,19 @@ def _read_json_result(path: str | Path, kind: str, cls, what: str, cfg=None):
             raise ResultsError(f"{path}: not a complete {what} ({type(err).__name__}: {err})") from None
 
 
-def write_whole(path: str | Path, cfg, result: WholeResult) -> Path:
+def write_whole(path: str | Path, cfg, result: WholeResult, role: str = "model") -> Path:
     """Write ``whole.h5`` (``hwid_kind = "whole"``): the whole-model fit's plain data
-    (:meth:`WholeResult.to_dict`) as the root attribute ``result`` (JSON)."""
-    return _write_json_result(path, cfg, "whole", result)
+    (:meth:`WholeResult.to_dict`, every fitted block included) as the root attribute ``result``
+    (JSON); ``role``: ``"model"`` where it is the run's model, ``"beside"`` where it was fitted
+    beside the two stages, whose model the run's is."""
+    return _write_json_result(path, cfg, "whole", result, {"role": role})
+
+
+def whole_role(path: str | Path) -> str:
+    """``whole.h5``'s role (:func:`write_whole`); ``"beside"`` for a file written without one (the
+    stages' model was then the run's wherever there were stages)."""
+    with open_results(path, "whole") as f:
+        return str(f.attrs.get("role", "beside"))
 
 
 def read_whole(path: str | Path, cfg=None) -> WholeResult:

@@ -14,6 +14,7 @@ from hwid.model import from_config
 from hwid.plant import SimulatedPlant, make_plant
 from hwid.progress import Progress
 from hwid.results import write_simulation
+from hwid.rundir import RIG_JOURNAL, SIMULATION
 
 
 def truth(cfg) -> dict | None:
@@ -53,9 +54,9 @@ def run_protocols(cfg, plant=None, progress: bool | None = None):
 def simulate(cfg, out_dir: str | Path, progress: bool | None = None) -> Path:
     """Write ``OUT/simulation.h5`` (layout in docs/guide/outputs.md): the protocols run on the plant, or a
     recorded plant's records read, cleaned and resampled (:mod:`hwid.recorded`)."""
-    out = Path(out_dir) / "simulation.h5"
+    out = Path(out_dir) / SIMULATION
     if cfg.plant.kind == "recorded":
         from hwid.recorded import load_records
         return write_simulation(out, cfg, load_records(cfg), None)
-    records = run_protocols(cfg, make_plant(cfg, journal_dir=Path(out_dir) / "rig_journal"), progress)
+    records = run_protocols(cfg, make_plant(cfg, journal_dir=Path(out_dir) / RIG_JOURNAL), progress)
     return write_simulation(out, cfg, records, truth(cfg))

@@ -148,7 +148,7 @@ def test_run_with_whole_enabled_is_not_worse_than_the_stages(tmp_path):
 def _origin_problem(kind, h_bar, sigma=0.0, seed=5):
     """A _Problem on random levels whose records are the model ``theta`` with ``h_bar`` (noise
     ``sigma``): F with unequal slopes, a first-order G, each record's own start."""
-    from hwid.identify.whole import _Problem
+    from hwid.identify.whole_problem import Problem as _Problem
     rng = np.random.default_rng(seed)
     recs = [Record(f"levels_{i}", 0.05, _levels_with_ramps(rng, 12, 2.0, 0.5, 0.05), None) for i in range(2)]
     theta = np.array([0.3, np.log(1.3), np.log(0.6), np.log(2.0), 1.0, 0.1, -2.0, -0.2])
@@ -312,7 +312,7 @@ def test_an_actuator_that_stops_short_is_fitted_with_its_limits(limits):
 def test_limits_at_the_inputs_centre_are_not_an_actuator_that_stops_short():
     """A limit at the inner end of its range (the input's centre) is the clip standing in for
     something else; limits short of the ends, or beyond them, are not pressed inward."""
-    from hwid.identify.whole import _Problem
+    from hwid.identify.whole_problem import Problem as _Problem
     from hwid.identify.whole_clip import _pressed_inward
     u = np.linspace(-1.4, 1.2, 200)
     prob = _Problem([Record("r", 0.05, u, np.zeros_like(u))], "backlash", Structure(1, 0), 3, False, with_clip=True)
@@ -367,7 +367,7 @@ def test_a_rate_is_kept_only_where_the_actuator_follows_half_the_commanded_range
     2 units commanded (the friction damper's fit): not an actuator that follows
     (:func:`hwid.identify.whole_rate._follows`); at 8 units/s, faster than the sine ever moves
     (2 pi units/s), it passes the sine on whole."""
-    from hwid.identify.whole import _Problem
+    from hwid.identify.whole_problem import Problem as _Problem
     from hwid.identify.whole_rate import FOLLOW_SHARE, _follows
     dt = 0.01
     u = np.sin(2 * np.pi * np.arange(1000) * dt)

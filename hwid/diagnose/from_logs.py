@@ -18,6 +18,7 @@ from hwid.diagnose.effects import catalogue
 from hwid.diagnose.modelsim import ModelSim
 from hwid.diagnose.next_experiment import propose
 from hwid.diagnose.sim_side import load_model
+from hwid.identify.split import plan
 from hwid.recorded import load_records
 
 
@@ -28,11 +29,11 @@ def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effe
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     records = [r for r in load_records(cfg) if r.y is not None]
-    parts, how = logs.plan(records)
+    parts, how = plan(records)
     if model is not None:
         sim_model, origin = load_model(model, echo=echo)
     else:
-        sim_model, origin = logs.identify_from_logs(cfg, logs.fit_pieces(parts), out, echo)
+        sim_model, origin = logs.identify_from_logs(cfg, records, out, echo)
     seconds_model = time.perf_counter() - t_start
     val, found = validation_from_logs(cfg, records, parts, sim_model, echo, model is None)
     floor, source, pairs = logs.floor_from_logs(val.exps, val.records, val.x_model, sim_model.input, val.design)

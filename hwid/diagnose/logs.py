@@ -32,10 +32,8 @@ import numpy as np
 
 from hwid import HwidError
 from hwid.diagnose import experiments, gap
+from hwid.identify.split import MIN_SCORED
 from hwid.recorded import level_segments
-
-#: Fewest scored samples a record needs to take part in the split.
-MIN_SCORED = 50
 
 
 def step_settling_time(model, share: float = 0.02) -> float:
@@ -71,66 +69,12 @@ def known_from(u: np.ndarray, F, settle_samples: int) -> int:
     return int(min(u.size, spanned[0] + settle_samples))
 
 
-#: Blocks a single record is cut into (odd ones to validation).
-N_BLOCKS = 8
-
 #: The band of an identified G's own lightly damped modes, rad/s, for a model identified from logs:
 #: none. No sine band fixed part of G; the whole fit put every mode there from the same records, so
 #: a lightly damped pair anywhere is the catalogue's ``resonance``, taken out of the refit baseline
 #: and left to that effect to earn back on the validation part (a resonance at 6.8 rad/s, zeta 0.13,
 #: went into the whole fit's G and was called ``none`` on a blind lab log).
 NO_BAND = (0.0, 0.0)
-
-
-def _kind(record) -> str:
-    """What a record holds, from :func:`hwid.recorded.level_segments`: ``levels`` (held at least
-    half the time), ``moving`` otherwise."""
-    u = np.asarray(record.u, float)
-    held = sum(seg["stop"] - seg["start"] for seg in level_segments(u))
-    return "levels" if held >= 0.5 * u.size else "moving"
-
-
-def _covers(parts, share: float = 0.05) -> bool:
-    """Whether the validation records' input reaches both ends of the fit records' (within
-    ``share`` of its range): effects that live at the extremes (a clip) must be seen by both."""
-    fit = np.concatenate([r.u for r, role, _ in parts if role == "fit"])
-    val = np.concatenate([r.u for r, role, _ in parts if role == "validation"])
-    tol = share * max(float(np.ptp(fit)), 1e-12)
-    return bool(val.min() <= fit.min() + tol and val.max() >= fit.max() - tol)
-
-
-def plan(records) -> tuple[list[tuple], str]:
-    """Which samples fit and which validate, decided before any model is known (so identifying
-    the model on the fit part never sees the validation part): ``([(record, role, samples), ...],
-    how)``.
-
-    By experiment where every kind of record (held levels, or moving input) comes at least twice
-    and the validation records reach both ends of the fit records' input range: every other record
-    of each kind to validation, in recorded order. Otherwise by interleaved
-    blocks: each record cut in :data:`N_BLOCKS` equal blocks (fewer for a short one, none under
-    ``2 MIN_SCORED`` samples), the odd ones to validation, the record kept whole so its history
-    carries across the blocks. Validation by whole experiments of kinds the fit never saw would
-    be blind to what only the fit's kind excites (a rate limit shows in steps, not in slow sines)."""
-    kinds = [_kind(r) for r in records]
-    if len(records) >= 2 and all(kinds.count(k) >= 2 for k in set(kinds)):
-        seen: dict[str, int] = {}
-        out = []
-        for r, k in zip(records, kinds):
-            out.append((r, "fit" if seen.get(k, 0) % 2 == 0 else "validation", np.ones(r.u.size, bool)))
-            seen[k] = seen.get(k, 0) + 1
-        if _covers(out):
-            return out, "experiments"
-    out = []
-    for r in records:
-        n_blocks = min(N_BLOCKS, r.u.size // MIN_SCORED) // 2 * 2
-        if n_blocks < 2:
-            continue
-        block = (np.arange(r.u.size) * n_blocks) // r.u.size
-        out += [(r, "fit", block % 2 == 0), (r, "validation", block % 2 == 1)]
-    if not out:
-        raise HwidError(f"diagnose: every record is shorter than {2 * MIN_SCORED} samples: too short to split into fit "
-                        "and validation blocks; record longer")
-    return out, "blocks"
 
 
 def with_starts(parts, model, dt: float, settle_s: float, echo, identified: bool = False) -> tuple[list, dict]:
@@ -224,81 +168,20 @@ def history(recs, records) -> list:
     return out
 
 
-def fit_pieces(parts) -> list:
-    """The records the model is identified from: the fit records, or a split record's fit blocks
-    as records of their own."""
-    out = []
-    for r, role, samples in parts:
-        if role != "fit":
-            continue
-        if samples.all():
-            out.append(r)
-            continue
-        idx = np.flatnonzero(np.diff(np.concatenate([[0], samples.astype(int), [0]])))
-        for k, (a, b) in enumerate(zip(idx[::2], idx[1::2])):
-            out.append(replace(r, name=f"{r.name}:fit{k}", u=r.u[a:b], y=r.y[a:b], attrs=dict(r.attrs)))
-    return out
-
-
-def identify_from_logs(cfg, pieces, out: Path, echo, rate_first: bool = False) -> tuple:
-    """The whole-model fit on the fit parts (``whole.h5``); the model and its origin. ``rate_first``:
-    records the input did not follow, fitted with its slew rate from the start
-    (:func:`hwid.identify.whole_rate.fit_rate_first`)."""
-    from hwid.identify.history import identify_recorded
-    from hwid.identify.whole import WholeModelFit
-    from hwid.identify.whole_clip import fit_clip_added
-    from hwid.identify.whole_rate import fit_rate_added, fit_rate_first
-    from hwid.model import InputNonlinearity
-    t0 = time.perf_counter()
-    if rate_first:
-        fitter = WholeModelFit.from_config(cfg, staged=True)
-        fit_rate_first(fitter, pieces)
-        return _whole_model(cfg, fitter, pieces, out, echo, t0)
-    try:    # stage 1 from the fit part's levels starts the borders, where they hold enough
-        hist = identify_recorded(cfg, pieces)
-        borders = InputNonlinearity(hist.type, 1.0, hist.slope_down, hist.d_plus, hist.d_minus)
-        if hist.misfit:
-            # levels the stage-1 model does not reach say little about F's type: a non-invertible
-            # h_bar read from few levels gave a Backlash-Inverse of zero play for a plain Backlash
-            borders = None
-        echo(f"stage 1 from the fit part's levels: {hist.type}, d+ = {hist.d_plus:.4g}, d- = {hist.d_minus:.4g}, "
-             f"S^d = {hist.slope_down:.4g}" + (" (misfit: not used; both types tried from a grid of borders)"
-                                               if hist.misfit else ": the borders' start"))
-    except HwidError:
-        borders = None
-    # G's pure delay fitted by name as well: a rational G alone stands in for a delay with fast
-    # poles the plant does not have, and then no excess phase is left for time_delay to name
-    fitter = WholeModelFit.from_config(cfg, staged=True).fit_delay_added(pieces, borders=borders)
-    # a slow actuator the fit without it would mimic with a G many times slower than the plant's:
-    # its rate is fitted too, taken out of the model and left to rate_limit as a start
-    fit_rate_added(fitter)
-    # an actuator that stops short, which the fit without it mimics with a bent F, G and h (and a
-    # slew): its limits likewise, left to input_saturation; they replace a rate that stood in for them
-    fit_clip_added(fitter)
-    return _whole_model(cfg, fitter, pieces, out, echo, t0)
-
-
-def _whole_model(cfg, fitter, pieces, out: Path, echo, t0: float) -> tuple:
-    """The whole fit's result written (``whole.h5``) and said; the model without G's slow pairs, and
-    its origin (with the slew rate and the limits the selected fit has, which the model leaves out)."""
-    from hwid.results import write_whole
-    res = fitter.result_
-    rate = fitter.problem_.rate(fitter.theta_)
-    clip = fitter.problem_.clip(fitter.theta_)
-    write_whole(out / "whole.h5", cfg, res)
-    echo(f"identified the model from the fit records ({time.perf_counter() - t0:.1f} s): {res.type}, "
-         f"d+ = {res.d_plus:.4g}, d- = {res.d_minus:.4g}, S^d = {res.slope_down:.4g}, h degree "
-         f"{len(res.h_coefficients) - 1}, G {res.structure}"
-         + (f" with a delay of {res.delay:.4g} s" if res.delay > 0 else "") + f", sigma {res.sigma:.4g}"
-         + (f"; the input slews at {rate:.4g} units/s (left to rate_limit)" if rate else "")
-         + (f"; the input is clipped to [{clip[0]:.4g}, {clip[1]:.4g}] (left to input_saturation)" if clip else ""))
-    u = np.concatenate([p.u for p in pieces])
-    model, notes = without_slow_pairs(res.model(), 2 * np.pi / max(p.u.size * p.dt for p in pieces), echo,
+def identify_from_logs(cfg, records, out: Path, echo) -> tuple:
+    """The model from logs, by the one identification path (:func:`hwid.identify.path.identify`:
+    the records split as :func:`plan` splits them, the whole fit on the fit part, ``whole.h5``),
+    taken as the diagnosis's baseline (:func:`hwid.diagnose.sim_side.origin_of`) without G's slow
+    pairs (:func:`without_slow_pairs`); the model and its origin."""
+    from hwid.diagnose.sim_side import origin_of
+    from hwid.identify.path import identify
+    ident = identify(cfg, records=records, out_dir=out, echo=echo, stage_results=False)
+    echo(f"identified the model by the {ident.route} route: {ident.why}")
+    model, origin = origin_of(ident, echo)
+    model, notes = without_slow_pairs(model, 2 * np.pi / max(p.u.size * p.dt for p in ident.records), echo,
                                       "the records (2 pi / their longest)")
-    return model, {"source": "identified", "fit": "whole", "records": list(pieces), "starts": dict(res.initial_states),
-                   "u_range": [float(u.min()), float(u.max())], "notes": list(res.warnings) + notes,
-                   "input_rate_taken_out": rate or 0.0,
-                   "input_clip_taken_out": [float(c) for c in clip] if clip else None}
+    origin["notes"] = list(origin.get("notes", [])) + notes
+    return model, origin
 
 
 def without_slow_pairs(model, lo: float, echo, what: str = "the records") -> tuple:
@@ -320,7 +203,8 @@ def without_slow_pairs(model, lo: float, echo, what: str = "the records") -> tup
             ", ".join(f"pole {p:.3g} / zero {z:.3g} rad/s" for p, z in pairs))
     echo(note)
     return HWModel(model.input, LinearBlock(tuple(np.asarray(num, float).tolist()),
-                                            tuple(np.asarray(den, float).tolist()), G.delay), model.output), [note]
+                                            tuple(np.asarray(den, float).tolist()), G.delay), model.output,
+                   model.actuator), [note]
 
 
 def floor_from_logs(exps, recs, xs, F, design) -> tuple:

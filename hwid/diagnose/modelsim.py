@@ -131,7 +131,7 @@ class ModelSim:
         self.lead = list(lead) if lead is not None else None
         self.pre = list(pre) if pre is not None else None
         self.measured = None
-        self.v = [model.input.apply(u) for u in self.inputs]
+        self.v = [model.input.apply(self.fitted_actuator(i)) for i in range(len(self.inputs))]
         self.w = [simulate_linear(model.linear, v, self.dt) for v in self.v]
         self.x = [model.output(w) for w in self.w]
 
@@ -139,12 +139,21 @@ class ModelSim:
         """The same model and experiments with the output nonlinearity replaced by ``h`` (the
         intermediate ``v, w`` are shared, not recomputed)."""
         new = object.__new__(ModelSim)
-        new.model = HWModel(self.model.input, self.model.linear, h)
+        new.model = HWModel(self.model.input, self.model.linear, h, self.model.actuator)
         new.dt, new.inputs, new.v, new.w = self.dt, self.inputs, self.v, self.w
         new.u_before, new.lead, new.measured = self.u_before, self.lead, self.measured
         new.pre, new.free_ringing = self.pre, self.free_ringing
         new.x = [h(w) for w in self.w]
         return new
+
+    def fitted_actuator(self, i: int) -> np.ndarray:
+        """Experiment ``i``'s input through the model's own actuator (:class:`hwid.model.Actuator`,
+        where the model carries one: the baseline is then the fitted model whole), as
+        :meth:`actuate` passes it; the input itself without one. An effect of the actuator acts on
+        the command in its place."""
+        if self.model.actuator is None:
+            return self.inputs[i]
+        return self.actuate(i, lambda u: self.model.actuate(u, self.dt))
 
     def actuate(self, i: int, act) -> np.ndarray:
         """Experiment ``i``'s input through the actuator map ``act`` (an effect of the actuator),
@@ -373,7 +382,7 @@ class ReblockedSim(ModelSim):
     use (an effect that re-simulates from ``u`` or ``v`` never needs the later ones)."""
 
     def __init__(self, base, F, G):
-        self.model = HWModel(F, G, base.model.output)
+        self.model = HWModel(F, G, base.model.output, base.model.actuator)
         self.dt, self.inputs = base.dt, base.inputs
         self.u_before = getattr(base, "u_before", None)
         self.lead = getattr(base, "lead", None)
@@ -385,7 +394,7 @@ class ReblockedSim(ModelSim):
     @property
     def v(self):
         if self._v is None:
-            self._v = [self.model.input.apply(u) for u in self.inputs]
+            self._v = [self.model.input.apply(self.fitted_actuator(i)) for i in range(len(self.inputs))]
         return self._v
 
     @property

@@ -1,8 +1,11 @@
 """The diagnosis's sim side: the model the plant is compared with.
 
 Given by the user (``--model``: a plant YAML of kind ``hammerstein_wiener``, or a directory written
-by ``hwid run``), or identified from the plant itself with the config's protocols (stage 1, stage 2
-and the parametric G) when none is given. ``hwid compare`` reads its MODEL the same way.
+by ``hwid run``), or identified from the plant itself by the one identification path
+(:func:`hwid.identify.path.identify`) when none is given. ``hwid compare`` reads its MODEL the same
+way. An identified model's actuator (a clip, a slew rate, a dead zone ahead of F) is handed to its
+effect as a start where the model without it still describes its records, and kept in the
+baseline where it does not (:func:`diagnosis_baseline`).
 """
 from __future__ import annotations
 
@@ -13,9 +16,10 @@ import numpy as np
 import yaml
 
 from hwid import HwidError, config
-from hwid.identify.result import model_from_stages
+from hwid.identify.path import g_undetermined  # noqa: F401  (where the diagnosis's tests look for it)
 from hwid.model import HWModel, from_config
-from hwid.results import read_linear, read_nonlinear, read_whole, write_linear, write_nonlinear
+from hwid.results import read_linear, read_nonlinear, read_whole, whole_role
+from hwid.rundir import LINEAR, NONLINEAR, WHOLE
 
 
 def model_from_yaml(path: Path) -> HWModel:
@@ -38,132 +42,131 @@ def model_from_yaml(path: Path) -> HWModel:
 
 
 def model_from_run(path: Path, echo=print) -> tuple[HWModel, dict]:
-    """The normalised model of a ``hwid run`` directory: its two stages' results, or, where it has
-    none (a recorded plant's run), its whole-model fit (``whole.h5``)."""
-    stages = all((path / name).exists() for name in ("nonlinear.h5", "linear.h5"))
-    if not stages and (path / "whole.h5").exists():
-        return read_whole(path / "whole.h5").model(), {"source": "results", "path": str(path), "fit": "whole",
-                                                         "notes": []}
-    for name in ("nonlinear.h5", "linear.h5"):
+    """The normalised model of a ``hwid run`` directory, as that run identified it: its whole-model
+    fit (``whole.h5``) where the run's model is that fit (a recorded plant's, or the fallback where
+    the stages could not give one), else its two stages' results (with the input dead zone stage 1
+    was identified behind)."""
+    from hwid.identify.path import stages_model
+    whole = path / WHOLE
+    stages = all((path / name).exists() for name in (NONLINEAR, LINEAR))
+    if whole.exists() and (not stages or whole_role(whole) == "model"):
+        res = read_whole(whole)
+        return res.model(), {"source": "results", "path": str(path), "fit": "whole", "notes": [],
+                             "starts": dict(res.initial_states)}
+    for name in (NONLINEAR, LINEAR):
         if not (path / name).exists():
             raise HwidError(f"--model {path}: no {name} (nor whole.h5) in that directory (write them with 'hwid run')")
-    nonlinear = read_nonlinear(path / "nonlinear.h5")
+    nonlinear = read_nonlinear(path / NONLINEAR)
     notes: list = []
-    model = model_from_stages(nonlinear, read_linear(path / "linear.h5"), notes)
+    model = stages_model(nonlinear, read_linear(path / LINEAR), notes)
     for note in notes:
         echo(note)
     return model, {"source": "results", "path": str(path), "w_range": [float(x) for x in nonlinear.w_range],
                    "notes": notes}
 
 
-#: stage 2's sines shrink by this factor while their output rests on a sensor rail, at most
-#: :data:`RAIL_TRIES` times (:func:`_sines_off_the_rails`)
-RAIL_SHRINK = 0.7
-RAIL_TRIES = 3
-
-
 def identified_model(cfg, plant, out_dir=None, echo=print) -> tuple[HWModel, dict]:
-    """Identify the model from ``plant`` with the config's staircases and sines (both stages); the
-    results go to ``out_dir`` as ``nonlinear.h5`` and ``linear.h5``. The origin dict carries the
-    identification's records (``records``), which the diagnosis uses and then drops."""
-    from hwid.identify.deadzone_ahead import ThroughDeadZone, find_deadzone
-    from hwid.identify.linear import identify_linear
-    from hwid.identify.sine_runs import run_sines, unsafe_precompensator
-    from hwid.identify.nonlinear import identify_nonlinear
+    """Identify the model from ``plant`` by the one identification path
+    (:func:`hwid.identify.path.identify`; its results go to ``out_dir``), and take it as the
+    diagnosis's baseline (:func:`diagnosis_baseline`). The origin dict carries the identification's
+    records (``records``), which the diagnosis uses and then drops."""
+    from hwid.identify.path import identify
     if cfg.protocols.staircase is None or cfg.protocols.sine is None:
         raise HwidError(f"{cfg.source_path}: without --model, diagnose identifies the model first and "
                         f"needs both protocols.staircase and protocols.sine")
     t0 = time.perf_counter()
-    nonlinear, nonlinear_records = identify_nonlinear(cfg, plant=plant)
-    ahead = find_deadzone(cfg, nonlinear, nonlinear_records)
-    notes: list = []
-    drive = plant        # what stage 2's sines go through: behind a dead zone, its inverse first
-    if ahead is not None:
-        echo(ahead.note())
-        notes.append(ahead.note())
-        nonlinear, drive = ahead.result, ThroughDeadZone(plant, ahead.delta)
-    unsafe = unsafe_precompensator(cfg, nonlinear)
-    if unsafe:
-        # stage 1 did not identify F: the sines run as they are, for the whole fit below
-        echo("stage 1 did not identify F: stage 2 is not run, and the sines drive the plant without a "
-             "pre-compensator")
-        _, linear_records = run_sines(cfg, None, plant=plant)
-        records = [r for r in list(nonlinear_records) + list(linear_records) if r.y is not None]
-        return _whole_instead(cfg, records, out_dir, unsafe, echo)
-    linear, linear_records = identify_linear(cfg, nonlinear, plant=drive)
-    cfg, linear, linear_records = _sines_off_the_rails(cfg, nonlinear, linear, linear_records, drive, echo)
-    if ahead is not None:      # the records as the plant received them, for the diagnosis and the files
-        linear_records = [drive.sent.get(r.name, r) for r in linear_records]
-    if out_dir is not None:
-        write_nonlinear(Path(out_dir) / "nonlinear.h5", cfg, nonlinear, nonlinear_records)
-        write_linear(Path(out_dir) / "linear.h5", cfg, linear, linear_records)
-    echo(f"identified the model ({time.perf_counter() - t0:.1f} s): {nonlinear.type}, d+ = {nonlinear.d_plus:.4g}, "
-         f"d- = {nonlinear.d_minus:.4g}, S^d = {nonlinear.slope_down:.4g}, h degree {nonlinear.degree}, "
-         f"G = {list(np.round(linear.parametric.get('num', []), 4))}/{list(np.round(linear.parametric.get('den', []), 4))}")
-    levels = list(cfg.protocols.staircase.levels_up) + list(cfg.protocols.staircase.levels_down)
-    records = [r for r in list(nonlinear_records) + list(linear_records) if r.y is not None]
-    w_range = [float(x) for x in nonlinear.w_range]
-    why = g_undetermined(linear)
-    if why and out_dir is not None:
-        return _whole_instead(cfg, records, out_dir, why, echo)
-    stage_notes: list = []
-    model = model_from_stages(nonlinear, linear, stage_notes)
-    for note in stage_notes:
-        echo(note)
-    return model, {"source": "identified", "w_range": w_range, "notes": notes + stage_notes,
-                   "u_range": [float(min(levels)), float(max(levels))], "records": records,
-                   "input_deadzone_taken_out": ahead.delta if ahead is not None else 0.0}
+    ident = identify(cfg, plant=plant, out_dir=out_dir, echo=echo)
+    echo(f"identified the model ({time.perf_counter() - t0:.1f} s) by the {ident.route} route: {ident.why}")
+    return origin_of(ident, echo)
 
 
-def _sines_off_the_rails(cfg, nonlinear, linear, records, plant, echo):
-    """Stage 2 again with sines :data:`RAIL_SHRINK` times as large, up to :data:`RAIL_TRIES` times,
-    while its outputs rest on a sensor rail (:mod:`hwid.identify.rails`): a clipped output's
-    harmonics are not those of ``h(G w)``, and G read from them is wrong where no effect's refit
-    reaches it. The validation experiments still cover the staircases' range, where the clip is the
-    diagnosis's to find. Returns the config whose sines were used, and stage 2's result and records."""
-    from hwid.identify.rails import describe, find_rails
-    from hwid.identify.linear import identify_linear
-    for _ in range(RAIL_TRIES):
-        found = find_rails([r.y for r in records if r.y is not None], [r.name for r in records if r.y is not None])
-        if not found:
-            break
-        sine = cfg.protocols.sine.model_copy(update={"amplitude": RAIL_SHRINK * cfg.protocols.sine.amplitude})
-        echo(f"stage 2's sines: {describe(found, cfg.sampling.dt)}; run again at amplitude {sine.amplitude:.3g}")
-        cfg = cfg.model_copy(update={"protocols": cfg.protocols.model_copy(update={"sine": sine})})
-        linear, records = identify_linear(cfg, nonlinear, plant=plant)
-    return cfg, linear, records
+def origin_of(ident, echo=print) -> tuple[HWModel, dict]:
+    """The diagnosis's baseline model and its origin from an identification
+    (:class:`hwid.identify.path.Identification`)."""
+    model, taken, notes = diagnosis_baseline(ident.model, ident.records, ident.starts, echo)
+    origin = {"source": "identified", "route": ident.route, "route_why": ident.why,
+              "notes": list(ident.notes) + notes, "records": list(ident.records),
+              "u_range": list(ident.u_range) if ident.u_range else None, **taken}
+    if ident.route == "whole":
+        origin.update({"fit": "whole", "starts": dict(ident.starts)})
+    if ident.w_range is not None:
+        origin["w_range"] = list(ident.w_range)
+    if ident.adequacy is not None:
+        origin["adequacy"] = ident.adequacy.to_dict()
+    return model, origin
 
 
-def _whole_instead(cfg, records, out_dir, why: str, echo) -> tuple[HWModel, dict]:
-    """The model fitted whole to the staircases and sines, with the input's slew rate, where the
-    two stages cannot stand for the plant (``why``): the records still hold its response."""
-    from hwid.diagnose.logs import identify_from_logs
-    if out_dir is None:
-        raise HwidError(f"{why}: the model cannot be identified in two stages")
-    echo(f"{why}: the model is fitted whole to the staircases and sines, with the input's slew rate")
-    model, origin = identify_from_logs(cfg, records, Path(out_dir), echo, rate_first=True)
-    w = np.concatenate([model.input.apply(r.u) for r in records])   # the w the records reached
-    return model, {**origin, "w_range": [float(w.min()), float(w.max())],
-                   "notes": [why] + list(origin.get("notes", []))}
-
-
-def g_undetermined(linear) -> str:
-    """Why stage 2's G cannot stand for the plant's, or ``""``: at half its sines or more no harmonic
-    of the output rose above the noise (the plant did not follow them: a slow actuator, a stuck
-    gear), or its parametric G has a pole within 1e-6 of the lowest sine's frequency of zero (the
-    fit's answer to gains that fall to nothing across the band, ``1.5e-15/(s + 1.5e-15)``). Either
-    way two stages read from harmonics have nothing to read; the staircases and sines still hold
-    the plant's response, for a fit of the whole model."""
-    n = len(linear.frequencies)
-    lost = sum(np.size(h.get("significant_harmonics", [1])) == 0 for h in linear.harmonics)
-    if n and 2 * lost >= n:
-        return f"stage 2 could not determine G at {lost} of its {n} sines (no harmonic above the noise)"
-    den = np.atleast_1d(np.asarray((linear.parametric or {}).get("den", []), float))
-    if den.size > 1 and n:
-        poles = np.roots(np.trim_zeros(den, "f"))
-        if poles.size and np.min(np.abs(poles)) < 1e-6 * float(np.min(linear.frequencies)):
-            return f"stage 2's G has a pole at {np.min(np.abs(poles)):.3g} rad/s, nothing below its sines"
+def free_run_explodes(model: HWModel, records, starts: dict | None = None) -> str:
+    """Why ``model``'s free run on ``records`` cannot stand for them, or ``""``: it is not finite,
+    or its RMS error exceeds the output's own spread (its standard deviation about its mean: a
+    model that does worse than the output's mean describes nothing of it). Each record from its
+    start in ``starts`` (``{name: {"gear", "rest"}}``, the whole fit's) where given."""
+    starts = starts or {}
+    res, ys = [], []
+    for r in records:
+        if r.y is None or not r.u.size:
+            continue
+        st = starts.get(r.name, {})
+        with np.errstate(all="ignore"):
+            x = model.simulate(r.u, r.dt, gear=st.get("gear"), rest=st.get("rest"), position=st.get("position")).x
+        res.append(np.asarray(r.y, float) - x)
+        ys.append(np.asarray(r.y, float))
+    if not res:
+        return ""
+    e, y = np.concatenate(res), np.concatenate(ys)
+    if not np.all(np.isfinite(e)):
+        return "its free run on its records is not finite"
+    rms, spread = float(np.sqrt(np.mean(e * e))), float(np.std(y))
+    if rms > spread:
+        return f"its free run misses its records by an RMS of {rms:.4g}, above the output's own spread {spread:.4g}"
     return ""
+
+
+def diagnosis_baseline(model: HWModel, records, starts: dict | None, echo=print) -> tuple[HWModel, dict, list]:
+    """The model the diagnosis measures effects against, the origin's keys that say so, and notes.
+
+    The actuator the identification fitted ahead of F (:class:`hwid.model.Actuator`) is taken out
+    and handed to its effect as a start (``input_clip_taken_out``, ``input_rate_taken_out``,
+    ``input_deadzone_taken_out``; :func:`hwid.diagnose.run.actuator_hints`), which must earn it back
+    on the validation part:
+
+    * a clip or a slew rate the whole fit found, where the model without it still describes its
+      records (:func:`free_run_explodes`). Where it does not (an h fitted behind a clip to
+      [-0.60, 0.13] and run without it reached coefficients of 1e11 and a noise floor of 1e9 on a
+      damper log), the baseline is the complete fitted model, and ``baseline`` says why;
+    * a dead zone stage 1 found behind which its levels fit (:mod:`hwid.identify.deadzone_ahead`,
+      with its own interval and consistency test) always: F, G and h were identified behind it, and
+      the diagnosis's validation experiments stay within the staircases' range. Where the model
+      without it misses its records, a note says by how much (the paper's plant behind a dead zone
+      of 0.2: an RMS of 2.5 on records of spread 1.07, h of degree 5 driven beyond where it was
+      identified by the dead zone's inverse), and ``input_deadzone`` is named from it as before."""
+    act = model.actuator
+    if act is None:
+        return model, {}, []
+    bare = model.without_actuator()
+    why = free_run_explodes(bare, records, starts)
+    fitted_whole = act.clip is not None or act.rate is not None
+    if why and fitted_whole:
+        note = (f"the model without its actuator ({_actuator_text(act)}): {why}; the diagnosis's baseline is the "
+                "complete fitted model, actuator included")
+        echo(note)
+        return model, {"baseline": "complete", "baseline_why": note}, [note]
+    notes = []
+    if why:
+        notes.append(f"the model without its {_actuator_text(act)}: {why}; the dead zone is left to input_deadzone, "
+                     "started at its width")
+        echo(notes[-1])
+    return bare, {"baseline": "actuator taken out", "input_rate_taken_out": act.rate or 0.0,
+                  "input_clip_taken_out": list(act.clip) if act.clip else None,
+                  "input_deadzone_taken_out": float(act.deadzone)}, notes
+
+
+def _actuator_text(act) -> str:
+    """The actuator's blocks in words."""
+    parts = [f"clip [{act.clip[0]:.4g}, {act.clip[1]:.4g}]"] if act.clip else []
+    parts += [f"slew {act.rate:.4g} units/s"] if act.rate else []
+    parts += [f"dead zone {act.deadzone:.4g}"] if act.deadzone else []
+    return ", ".join(parts)
 
 
 def load_model(spec, cfg=None, plant=None, out_dir=None, echo=print) -> tuple[HWModel, dict]:

@@ -13,7 +13,7 @@ import numpy as np
 
 from hwid.blocks.linear import LinearBlock
 from hwid.blocks.static import PolynomialH
-from hwid.model import HWModel, InputNonlinearity
+from hwid.model import Actuator, HWModel, InputNonlinearity
 
 
 @dataclass(frozen=True)
@@ -161,7 +161,10 @@ def plain(x):
 
 @dataclass(frozen=True)
 class WholeResult:
-    """The whole-model fit: the normalised model, 95 % intervals, the selection table."""
+    """The whole-model fit: the normalised model, 95 % intervals, the selection table.
+    ``actuator``: the input's clip and slew rate where the selected fit has them (F, G and h were
+    fitted behind them, and :meth:`model` keeps them); ``initial_states`` holds each record's
+    ``gear`` and ``rest``, and with a slew carried from record to record, its ``position``."""
 
     type: str
     slope_down: float
@@ -179,10 +182,12 @@ class WholeResult:
     initial_states: dict
     selection: tuple[dict, ...]
     warnings: tuple[str, ...] = ()
+    actuator: Actuator | None = None
 
     def model(self) -> HWModel:
+        """The model that was fitted: F, G (with its delay), h_bar and the actuator ahead of F."""
         return HWModel(InputNonlinearity(self.type, 1.0, self.slope_down, self.d_plus, self.d_minus),
-                       LinearBlock(self.num, self.den, self.delay), PolynomialH(self.h_coefficients))
+                       LinearBlock(self.num, self.den, self.delay), PolynomialH(self.h_coefficients), self.actuator)
 
     def to_dict(self) -> dict:
         """Plain data for JSON and ``whole.h5``."""
@@ -193,7 +198,8 @@ class WholeResult:
                 **{f"{k}_ci": [list(x) for x in v] if k == "h_coefficients" else list(v) for k, v in self.ci.items()},
                 "sigma": self.sigma, "rms": self.rms, "samples": self.samples,
                 "initial_states": self.initial_states, "selection": list(self.selection),
-                "warnings": list(self.warnings)}
+                "warnings": list(self.warnings),
+                "actuator": None if self.actuator is None else self.actuator.to_dict()}
 
     @classmethod
     def from_dict(cls, d: dict) -> "WholeResult":
@@ -203,7 +209,8 @@ class WholeResult:
         return cls(str(d["type"]), float(d["slope_down"]), float(d["d_plus"]), float(d["d_minus"]),
                    tuple(d["h_coefficients"]), tuple(d["num"]), tuple(d["den"]), float(d["delay"]),
                    str(d["structure"]), ci, float(d["sigma"]), float(d["rms"]), int(d["samples"]),
-                   dict(d["initial_states"]), tuple(d["selection"]), tuple(d.get("warnings", ())))
+                   dict(d["initial_states"]), tuple(d["selection"]), tuple(d.get("warnings", ())),
+                   Actuator.from_dict(d.get("actuator")))
 
 
 def first_order_fallback(lin: LinearResult) -> tuple[list, list]:

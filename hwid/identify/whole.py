@@ -24,204 +24,20 @@ one degree of h_bar higher (:meth:`WholeModelFit._result` says why).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Sequence
 
 import numpy as np
-from numba import njit
 from scipy import optimize, special
 
 from hwid import HwidError
-from hwid.blocks.slew import slewed
-from hwid.identify.g_structure import STRUCTURES, Structure, g_from_params, g_params_from, structure_of
+from hwid.identify.defaults import MAX_DEGREE, MAX_NFEV
+from hwid.identify.g_structure import STRUCTURES, Structure, g_from_params, g_params_from, structure_of  # noqa: F401
 from hwid.identify.result import WholeResult
-from hwid.model import HWModel, InputNonlinearity
+from hwid.identify.whole_problem import Problem, best_states, border_grid, extent, table_row
+from hwid.identify.whole_stats import central_grad, central_jacobian, correlation_time
+from hwid.model import HWModel
 from hwid.threads import forked_map, workers
-
-
-@dataclass
-class _Problem:
-    """The data and the fixed choices of one fit (F type, G structure, h degree, delay or not)."""
-
-    records: list
-    type: str
-    structure: Structure
-    degree: int
-    with_delay: bool
-    #: the input slews at most a fitted rate before F (a slow actuator the records show; see
-    #: :func:`hwid.identify.whole_rate.fit_rate_added`)
-    with_rate: bool = False
-    #: the input is clipped to a fitted ``[u_lo, u_hi]`` before F (an actuator that stops short of
-    #: the commanded range; see :func:`hwid.identify.whole_clip.fit_clip_added`)
-    with_clip: bool = False
-    #: with a rate: the actuator's position carries over from each record to the next (the records
-    #: in the order they were run, as on a rig whose actuator nobody resets), rather than starting
-    #: at each record's first input
-    carried: bool = False
-    y: np.ndarray = field(init=False)
-
-    def __post_init__(self):
-        # a record's attribute "burn_in" (samples) leaves its first samples out of the cost: a
-        # stretch cut from a longer experiment starts in a state the nuisance parameters only
-        # approximate (the gear and G at rest)
-        self.keep = np.concatenate([np.arange(r.u.size) >= int(r.attrs.get("burn_in", 0)) for r in self.records])
-        self.y = np.concatenate([r.y for r in self.records])[self.keep]
-
-    @property
-    def n_outer(self) -> int:
-        return self.states_at + 2 * len(self.records)
-
-    @property
-    def states_at(self) -> int:
-        """Index of the first record's initial state in the outer parameters (after F's three,
-        G's, the delay's, the rate's and the clip's two)."""
-        return self.clip_at + 2 * int(self.with_clip)
-
-    @property
-    def clip_at(self) -> int:
-        """Index of the clip's lower limit in the outer parameters (where it has one; the upper follows)."""
-        return self.rate_at + int(self.with_rate)
-
-    @property
-    def rate_at(self) -> int:
-        """Index of the slew rate's logarithm in the outer parameters (where it has one)."""
-        return 3 + self.structure.n_params + int(self.with_delay)
-
-    def unpack(self, theta):
-        """``(F, G, [(gear, rest), ...])`` of the outer parameters ``theta``."""
-        f, g, states, _ = self._unpacked(theta)
-        return f, g, states
-
-    def actuated(self, theta) -> list[np.ndarray]:
-        """Each record's input as the actuator passes it on: clipped, then slewed (from the
-        previous record's last position where it is ``carried``)."""
-        rate, clip = self.rate(theta), self.clip(theta)
-        out, last = [], None
-        for r in self.records:
-            u = r.u if clip is None else np.clip(r.u, *clip)
-            if rate is not None:
-                u = slewed(u, rate, r.dt, start=last if self.carried else None)
-                last = float(u[-1]) if u.size else last
-            out.append(u)
-        return out
-
-    def _unpacked(self, theta):
-        """``(F, G, states, actuated inputs)`` of ``theta``."""
-        d_plus, log_sd, gap = theta[0], theta[1], theta[2]
-        f = InputNonlinearity(self.type, 1.0, float(np.exp(log_sd)), float(d_plus), float(d_plus - np.exp(gap)))
-        k = 3 + self.structure.n_params
-        delay = float(abs(theta[k])) if self.with_delay else 0.0
-        g = g_from_params(self.structure, theta[3:3 + self.structure.n_params], delay)
-        inputs = self.actuated(theta)
-        states = []
-        j = self.states_at
-        for u in inputs:
-            # a Backlash-Inverse's start is anywhere its branches reach over the record, not only
-            # between their values at u[0] (a record that opens with a hold shows it all along)
-            lo, hi = f.start_band(u)
-            frac = 0.5 * (1.0 + np.tanh(0.5 * theta[j]))
-            states.append((lo + frac * (hi - lo), float(theta[j + 1])))
-            j += 2
-        return f, g, states, inputs
-
-    def w(self, theta) -> np.ndarray:
-        f, g, states, inputs = self._unpacked(theta)
-        out = [g.simulate(f.apply(u, gear), r.dt, rest) for r, u, (gear, rest) in zip(self.records, inputs, states)]
-        return np.concatenate(out)[self.keep]
-
-    @property
-    def label(self) -> str:
-        """Its selection-table row's structure: G's, marked ``+delay``, ``+rate`` and ``+clip`` where
-        those were fitted too."""
-        return (str(self.structure) + "+delay" * self.with_delay + "+rate" * self.with_rate
-                + " carried" * (self.with_rate and self.carried) + "+clip" * self.with_clip)
-
-    def rate(self, theta) -> float | None:
-        """The input's slew rate (units/s), or None without one."""
-        if not self.with_rate:
-            return None
-        return float(np.exp(theta[self.rate_at]))
-
-    def clip(self, theta) -> tuple[float, float] | None:
-        """The input's limits ``(u_lo, u_hi)``, or None without them."""
-        if not self.with_clip:
-            return None
-        return float(theta[self.clip_at]), float(theta[self.clip_at + 1])
-
-    def clip_bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
-        """Where the limits may go: ``u_lo`` from 5 % of the input's range below its least value to
-        its centre, ``u_hi`` from the centre to 5 % above its greatest (beyond, a limit is no limit)."""
-        u = np.concatenate([r.u for r in self.records])
-        a, b = float(u.min()), float(u.max())
-        c, m = 0.5 * (a + b), 0.05 * (b - a)
-        return (a - m, c), (c, b + m)
-
-    def design(self, w) -> np.ndarray:
-        return np.vander(w, self.degree + 1, increasing=True)[:, 1:]
-
-    def bounds(self, u_width: float, span_s: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """Where the outer parameters may go: borders within twice the input's range, G's rates
-        between a hundredth of the record's inverse length and ten times the sampling rate."""
-        lo = [-np.inf, np.log(0.05), np.log(1e-6 * u_width)]
-        hi = [np.inf, np.log(20.0), np.log(2.0 * u_width)]
-        rate_lo, rate_hi = np.log(0.01 / span_s), np.log(10.0 / dt)
-        for _ in range(self.structure.poles):
-            lo.append(rate_lo)
-            hi.append(rate_hi)
-        for _ in range(self.structure.pairs):
-            lo += [rate_lo, np.log(0.01)]
-            hi += [rate_hi, np.log(10.0)]
-        for _ in range(self.structure.zeros):
-            lo.append(-span_s)
-            hi.append(span_s)
-        if self.with_delay:
-            lo.append(0.0)
-            hi.append(0.5 * span_s)
-        if self.with_rate:     # from crossing the input's range in two minutes to in one sample
-            lo.append(np.log(u_width / 120.0))
-            hi.append(np.log(u_width / dt))
-        if self.with_clip:
-            (lo_a, lo_b), (hi_a, hi_b) = self.clip_bounds()
-            lo += [lo_a, hi_a]
-            hi += [lo_b, hi_b]
-        for _ in self.records:
-            lo += [-30.0, -np.inf]
-            hi += [30.0, np.inf]
-        return np.array(lo), np.array(hi)
-
-    def residual(self, theta) -> np.ndarray:
-        """The output error with h_bar solved for (variable projection)."""
-        try:
-            w = self.w(theta)
-        except (np.linalg.LinAlgError, ValueError, FloatingPointError):
-            return np.full(self.y.size, 1e6)
-        if not np.all(np.isfinite(w)) or np.max(np.abs(w)) > 1e6:
-            return np.full(self.y.size, 1e6)
-        return _poly_residual(w, self.y, self._solve(w))
-
-    def _solve(self, w) -> np.ndarray:
-        """h_bar's coefficients (powers 1..degree) for the argument ``w``: the normal equations of
-        the design ``[w, w^2, ...]`` from w's power sums (one pass, no tall matrix), with the
-        columns scaled to unit norm (p <= 9 columns)."""
-        sums, rhs = _power_sums(w, self.y, self.degree)
-        p = self.degree
-        gram = np.array([[sums[i + j] for j in range(1, p + 1)] for i in range(1, p + 1)])
-        norms = np.sqrt(np.diag(gram).copy())
-        norms[norms == 0] = 1.0
-        try:
-            c = np.linalg.solve(gram / np.outer(norms, norms), rhs / norms)
-        except np.linalg.LinAlgError:
-            scaled = self.design(w) / norms
-            c = np.linalg.lstsq(scaled, self.y, rcond=None)[0]
-        return c / norms
-
-    def h(self, theta) -> np.ndarray:
-        return np.concatenate([[0.0], self._solve(self.w(theta))])
-
-    def full_residual(self, full) -> np.ndarray:
-        """The output error of outer parameters and h_bar's coefficients together (for the covariance)."""
-        theta, c = full[:self.n_outer], full[self.n_outer:]
-        return self.y - self.design(self.w(theta)) @ c
 
 
 class WholeModelFit:
@@ -247,8 +63,8 @@ class WholeModelFit:
         type, structure and degree).
     """
 
-    def __init__(self, max_degree: int = 5, structures: Sequence[Structure] | None = None, delay: bool = False,
-                 types: Sequence[str] = ("backlash", "backlash_inverse"), max_nfev: int = 200,
+    def __init__(self, max_degree: int = MAX_DEGREE, structures: Sequence[Structure] | None = None,
+                 delay: bool = False, types: Sequence[str] = ("backlash", "backlash_inverse"), max_nfev: int = MAX_NFEV,
                  staged: bool = False):
         self.max_degree = max_degree
         self.staged = staged
@@ -256,6 +72,12 @@ class WholeModelFit:
         self.delay = delay
         self.types = types
         self.max_nfev = max_nfev
+
+    def variant(self, structures=None, delay: bool | None = None, types=None) -> "WholeModelFit":
+        """The same estimator with its structures, delay or types replaced (None: kept)."""
+        return WholeModelFit(self.max_degree, self.structures if structures is None else structures,
+                             self.delay if delay is None else delay, self.types if types is None else types,
+                             self.max_nfev, self.staged)
 
     @classmethod
     def from_config(cls, cfg, staged: bool = False) -> "WholeModelFit":
@@ -287,60 +109,7 @@ class WholeModelFit:
                 structures = [own]
             p = len(start.output.coefficients) - 1
             degrees = range(max(1, p - 1), min(self.max_degree, p + 1) + 1)
-        span, dt, width = _extent(records)
-        table, solutions = [], {}
-
-        def path(kind, structure, degs, first=None):
-            """Fits of h_bar's degrees ``degs`` in order, each from the start (``first``, or
-            :meth:`_start`'s) and from the one before."""
-            if first is None:
-                first = _best_states(_Problem(records, kind, structure, max(degs), self.delay),
-                                     self._start(records, kind, structure, start, borders))
-            theta0, rows = None, []
-            for degree in degs:
-                prob = _Problem(records, kind, structure, degree, self.delay)
-                lo, hi = prob.bounds(width, span, dt)
-                # from the start and from the fit one degree lower: the cost is only piecewise
-                # smooth in the borders (a sample switches between held and moving gear), and
-                # either path alone can stop in a shallow local minimum
-                sol = None
-                for t0 in (first, theta0):
-                    if t0 is None:
-                        continue
-                    trial = optimize.least_squares(prob.residual, np.clip(t0, lo + 1e-9, hi - 1e-9),
-                                                   bounds=(lo, hi), method="trf", x_scale=1.0,
-                                                   max_nfev=self.max_nfev)
-                    if sol is None or trial.cost < sol.cost:
-                        sol = trial
-                row = _row(prob, float(sol.fun @ sol.fun))
-                aic = row["aic"]
-                if (kind, structure, degree) not in solutions or aic < solutions[kind, structure, degree][2]:
-                    solutions[kind, structure, degree] = (prob, sol.x, float(aic))
-                rows.append(row)
-                theta0 = sol.x
-            table.extend(rows)
-            return rows
-
-        def paths(jobs):
-            """:func:`path` for each ``(kind, structure, degrees)``, on every core
-            (:func:`hwid.threads.forked_map`): each path's rows, in order, with the table and the
-            solutions merged as one process would have them."""
-            def one(job):
-                before = {k: id(v) for k, v in solutions.items()}
-                rows = path(*job)
-                return rows, {k: v[1:] for k, v in solutions.items() if before.get(k) != id(v)}
-            if min(workers(), len(jobs)) <= 1:
-                return [path(*job) for job in jobs]
-            out = []
-            for rows, added in forked_map(one, jobs):      # the workers' rows and solutions, merged
-                table.extend(rows)
-                for (kind, structure, degree), (x, aic) in added.items():
-                    if (kind, structure, degree) not in solutions or aic < solutions[kind, structure, degree][2]:
-                        solutions[kind, structure, degree] = (_Problem(records, kind, structure, degree, self.delay),
-                                                              x, aic)
-                out.append(rows)
-            return out
-
+        search = _Search(self, records, start, borders)
         pairs = [(kind, structure) for kind in types for structure in structures]
         if self.staged and start is None and len(pairs) > 1:
             # type and G structure at h_bar's highest degree (a lower one misranks them where h_bar
@@ -348,34 +117,26 @@ class WholeModelFit:
             # then every degree for the best of them
             mid = max(degrees)
             scored = [(rows[0]["aic"], kind, structure)
-                      for rows, (kind, structure) in zip(paths([(k, g, [mid]) for k, g in pairs]), pairs)]
+                      for rows, (kind, structure) in zip(search.paths([(k, g, [mid]) for k, g in pairs]), pairs)]
             pairs = [min(scored, key=lambda x: x[0])[1:]]
             # the winner's row at that degree is fitted again on its degree path below
-            table[:] = [r for r in table if (r["type"], r["structure"]) != (pairs[0][0], self._label(pairs[0][1]))]
-        paths([(kind, structure, list(degrees)) for kind, structure in pairs])
-        key = min(solutions, key=lambda k: solutions[k][2])
-        prob, theta, _ = solutions[key]
-        lo, hi = prob.bounds(width, span, dt)
+            search.table[:] = [r for r in search.table
+                               if (r["type"], r["structure"]) != (pairs[0][0], self._label(pairs[0][1]))]
+        search.paths([(kind, structure, list(degrees)) for kind, structure in pairs])
+        prob, theta, _ = search.best()
+        lo, hi = prob.bounds(search.width, search.span, search.dt)
         moved = _other_origin(prob, theta, lo, hi, self.max_nfev)
         if moved is not None:
-            # the selected fit sat at another origin of h_bar: its type and structure's degree
-            # path again from the one found there, so the degree is chosen among fits there
-            own = (prob.type, prob.label)
-            before = {r["degree"]: r for r in table if (r["type"], r["structure"]) == own}
-            table[:] = [r for r in table if (r["type"], r["structure"]) != own]
-            for row in path(prob.type, prob.structure, list(degrees), first=moved):
-                old = before.get(row["degree"])
-                if old is not None and old["aic"] < row["aic"]:   # the table keeps what solutions keeps
-                    table[table.index(row)] = old
-            key = min(solutions, key=lambda k: solutions[k][2])
-        best = (solutions[key][2], solutions[key][0], solutions[key][1])
-        solutions = {k: v[:2] for k, v in solutions.items()}
-        _, prob, theta = best
+            search.again(prob, list(degrees), moved)
+            prob, theta, _ = search.best()
+        solutions = {k: v[:2] for k, v in search.solutions.items()}
         from hwid.identify.whole_delay import pole_for_delay, pole_for_rhp_zero
-        pole = (pole_for_delay if self.delay else pole_for_rhp_zero)(prob, theta, width, span, dt, self.max_nfev)
+        pole = (pole_for_delay if self.delay else pole_for_rhp_zero)(prob, theta, search.width, search.span,
+                                                                      search.dt, self.max_nfev)
+        table = search.table
         if pole is not None:
             prob, theta, rss = pole
-            table.append(_row(prob, rss))
+            table.append(table_row(prob, rss))
         self.problem_, self.theta_ = prob, theta
         self.result_ = self._result(prob, theta, table, solutions.get((prob.type, prob.structure, prob.degree + 1)))
         return self
@@ -390,7 +151,38 @@ class WholeModelFit:
         from hwid.identify.whole_delay import fit_delay_added
         return fit_delay_added(self, records, borders)
 
-    def _start(self, records, kind, structure, start: HWModel | None, borders=None) -> np.ndarray:
+    def fit_rate_added(self) -> float | None:
+        """After a fit: the input's slew rate added where the criterion prefers it
+        (:func:`hwid.identify.whole_rate.fit_rate_added`); the rate kept, or None."""
+        from hwid.identify.whole_rate import fit_rate_added
+        return fit_rate_added(self)
+
+    def fit_clip_added(self) -> tuple[float, float] | None:
+        """After a fit: the input's limits added where the criterion prefers them
+        (:func:`hwid.identify.whole_clip.fit_clip_added`); the limits kept, or None."""
+        from hwid.identify.whole_clip import fit_clip_added
+        return fit_clip_added(self)
+
+    def fit_rate_first(self, records) -> "WholeModelFit":
+        """The fit with the input's slew rate from the start, where the records say the input did
+        not follow (:func:`hwid.identify.whole_rate.fit_rate_first`)."""
+        from hwid.identify.whole_rate import fit_rate_first
+        fit_rate_first(self, records)
+        return self
+
+    def fit_actuated(self, records, borders=None) -> "WholeModelFit":
+        """The whole fit with every step the records may ask for, in order: G's delay by name
+        (:meth:`fit_delay_added`), then the input's slew rate (:meth:`fit_rate_added`: a slow
+        actuator the fit without it mimics with a G many times slower than the plant's), then its
+        clip (:meth:`fit_clip_added`: an actuator that stops short, which the fit without it mimics
+        with a bent F, G and h and a slew; its limits replace a rate that stood in for them). The
+        selected fit keeps what it found (:meth:`WholeResult.model` with its actuator)."""
+        self.fit_delay_added(records, borders)
+        self.fit_rate_added()
+        self.fit_clip_added()
+        return self
+
+    def start_values(self, records, kind, structure, start: HWModel | None, borders=None) -> np.ndarray:
         """Outer start values: from ``start`` where given, else from ``borders`` (G at its default
         start), else the best of a coarse border grid (h_bar of the highest degree solved for, G at
         its default start)."""
@@ -398,7 +190,7 @@ class WholeModelFit:
             f = start.input
             return np.array([f.d_plus, np.log(f.slope_down), np.log(max(f.d_plus - f.d_minus, 1e-6)),
                              *self._rest(records, structure, start.linear)], float)
-        prob = _Problem(records, kind, structure, self.max_degree, self.delay)
+        prob = Problem(records, kind, structure, self.max_degree, self.delay)
         grid = self.grid(records, structure)
         if borders is not None:
             # the borders (stage 1 from the levels) compete with the grid: from few levels they can
@@ -424,14 +216,14 @@ class WholeModelFit:
             out += [0.0, float(np.median(r.u[: max(3, r.u.size // 50)]))]
         return out
 
-    def hold(self, prob: _Problem, theta, table, note: str = "") -> None:
+    def hold(self, prob: Problem, theta, table, note: str = "") -> None:
         """Make the fit ``theta`` of ``prob`` the selected one (``problem_``, ``theta_``, ``result_``
         with the selection ``table``); ``note`` joins its warnings (what the model leaves out)."""
         self.problem_, self.theta_ = prob, theta
         res = self._result(prob, theta, table)
         self.result_ = replace(res, warnings=res.warnings + (note,)) if note else res
 
-    def _result(self, prob: _Problem, theta, table, richer=None) -> WholeResult:
+    def _result(self, prob: Problem, theta, table, richer=None) -> WholeResult:
         """The result of the selected fit; ``richer`` is ``(problem, theta)`` of the same type and
         structure with h_bar one degree higher, when it was fitted.
 
@@ -450,19 +242,23 @@ class WholeModelFit:
         if prob.degree == self.max_degree:
             warnings.append(f"h_bar's degree is the highest tried ({self.max_degree}); a higher one may fit better")
         init = {rec.name: {"gear": gear, "rest": rest} for rec, (gear, rest) in zip(prob.records, states)}
+        act = prob.actuator(theta)
+        if act is not None and act.carried:
+            for rec, pos in zip(prob.records, prob.positions(theta)):
+                init[rec.name]["position"] = pos
         return WholeResult(f.type, f.slope_down, f.d_plus, f.d_minus, tuple(float(c) for c in h),
                            g.num, g.den, g.delay, str(prob.structure), ci, float(np.sqrt(s2)),
-                           float(np.sqrt(np.mean(r * r))), int(r.size), init, tuple(table), tuple(warnings))
+                           float(np.sqrt(np.mean(r * r))), int(r.size), init, tuple(table), tuple(warnings), act)
 
     @staticmethod
-    def _intervals(prob: _Problem, theta, h) -> tuple[dict, float, np.ndarray, list]:
+    def _intervals(prob: Problem, theta, h) -> tuple[dict, float, np.ndarray, list]:
         """95 % intervals of the borders, the slope and h_bar's coefficients ``h`` of the fit
         ``theta`` of ``prob``; with the residual variance, the residual and the warnings they raise."""
         full = np.concatenate([theta, h[1:]])
         r = prob.full_residual(full)
         n, k = r.size, full.size
         s2 = float(r @ r) / max(n - k, 1)
-        jac = _jacobian(prob.full_residual, full)
+        jac = central_jacobian(prob.full_residual, full)
         warnings = []
         # columns on one scale before inverting: h_bar's high powers make J's columns differ by many
         # orders of magnitude, and a pseudo-inverse would then zero whole directions (intervals of
@@ -482,8 +278,9 @@ class WholeModelFit:
         cov = cov * max(tau, 1.0)
         z = special.ndtri(0.975)
         # intervals of the reported quantities by the delta method on the outer parameters
-        grads = {"d_plus": _grad(lambda t: t[0], full), "slope_down": _grad(lambda t: np.exp(t[1]), full),
-                 "d_minus": _grad(lambda t: t[0] - np.exp(t[2]), full)}
+        grads = {"d_plus": central_grad(lambda t: t[0], full),
+                 "slope_down": central_grad(lambda t: np.exp(t[1]), full),
+                 "d_minus": central_grad(lambda t: t[0] - np.exp(t[2]), full)}
         ci = {}
         for name, (value, grad) in grads.items():
             sd = float(np.sqrt(max(grad @ cov @ grad, 0.0)))
@@ -493,101 +290,89 @@ class WholeModelFit:
         return ci, s2, r, warnings
 
 
-def border_grid(records) -> list[tuple[float, float]]:
-    """The coarse grid of borders a fit without a start begins from: ``(d_plus, log(d_plus -
-    d_minus))`` with ``d_plus`` across the middle half of the input's range about its median and
-    the play 2 %, 10 %, 30 % and 60 % of the range."""
-    u = np.concatenate([r.u for r in records])
-    width, centre = float(np.ptp(u)) or 1.0, float(np.median(u))
-    return [(centre + a * width, float(np.log(b * width)))
-            for a in np.linspace(-0.25, 0.25, 7) for b in (0.02, 0.1, 0.3, 0.6)]
+
+class _Search:
+    """The selection's search in one :meth:`WholeModelFit.fit`: each type and structure's path over
+    h_bar's degrees, the table of every fit tried (``table``) and the best fit of each type,
+    structure and degree (``solutions``: ``(problem, theta, criterion)``)."""
+
+    def __init__(self, fitter: WholeModelFit, records, start: HWModel | None, borders):
+        self.fitter, self.records, self.start, self.borders = fitter, records, start, borders
+        self.span, self.dt, self.width = extent(records)
+        self.table: list = []
+        self.solutions: dict = {}
+
+    def path(self, kind, structure, degs, first=None) -> list:
+        """Fits of h_bar's degrees ``degs`` in order, each from the start (``first``, or
+        :meth:`WholeModelFit.start_values`'s) and from the one before."""
+        fitter, records, delay = self.fitter, self.records, self.fitter.delay
+        if first is None:
+            first = best_states(Problem(records, kind, structure, max(degs), delay),
+                                fitter.start_values(records, kind, structure, self.start, self.borders))
+        theta0, rows = None, []
+        for degree in degs:
+            prob = Problem(records, kind, structure, degree, delay)
+            lo, hi = prob.bounds(self.width, self.span, self.dt)
+            # from the start and from the fit one degree lower: the cost is only piecewise
+            # smooth in the borders (a sample switches between held and moving gear), and
+            # either path alone can stop in a shallow local minimum
+            sol = None
+            for t0 in (first, theta0):
+                if t0 is None:
+                    continue
+                trial = optimize.least_squares(prob.residual, np.clip(t0, lo + 1e-9, hi - 1e-9),
+                                               bounds=(lo, hi), method="trf", x_scale=1.0,
+                                               max_nfev=fitter.max_nfev)
+                if sol is None or trial.cost < sol.cost:
+                    sol = trial
+            row = table_row(prob, float(sol.fun @ sol.fun))
+            self._keep((kind, structure, degree), prob, sol.x, float(row["aic"]))
+            rows.append(row)
+            theta0 = sol.x
+        self.table.extend(rows)
+        return rows
+
+    def _keep(self, key, prob, x, aic: float) -> None:
+        if key not in self.solutions or aic < self.solutions[key][2]:
+            self.solutions[key] = (prob, x, aic)
+
+    def paths(self, jobs) -> list:
+        """:meth:`path` for each ``(kind, structure, degrees)``, on every core
+        (:func:`hwid.threads.forked_map`): each path's rows, in order, with the table and the
+        solutions merged as one process would have them."""
+        def one(job):
+            before = {k: id(v) for k, v in self.solutions.items()}
+            rows = self.path(*job)
+            return rows, {k: v[1:] for k, v in self.solutions.items() if before.get(k) != id(v)}
+        if min(workers(), len(jobs)) <= 1:
+            return [self.path(*job) for job in jobs]
+        out = []
+        for rows, added in forked_map(one, jobs):      # the workers' rows and solutions, merged
+            self.table.extend(rows)
+            for (kind, structure, degree), (x, aic) in added.items():
+                if (kind, structure, degree) not in self.solutions or aic < self.solutions[kind, structure, degree][2]:
+                    self.solutions[kind, structure, degree] = (
+                        Problem(self.records, kind, structure, degree, self.fitter.delay), x, aic)
+            out.append(rows)
+        return out
+
+    def best(self) -> tuple:
+        """``(problem, theta, criterion)`` of the best fit so far."""
+        return self.solutions[min(self.solutions, key=lambda k: self.solutions[k][2])]
+
+    def again(self, prob, degrees, moved) -> None:
+        """The selected fit sat at another origin of h_bar: its type and structure's degree path
+        again from the one found there (``moved``), so the degree is chosen among fits there."""
+        own = (prob.type, prob.label)
+        before = {r["degree"]: r for r in self.table if (r["type"], r["structure"]) == own}
+        self.table[:] = [r for r in self.table if (r["type"], r["structure"]) != own]
+        for row in self.path(prob.type, prob.structure, degrees, first=moved):
+            old = before.get(row["degree"])
+            if old is not None and old["aic"] < row["aic"]:   # the table keeps what solutions keeps
+                self.table[self.table.index(row)] = old
 
 
-def _extent(records) -> tuple[float, float, float]:
-    """``(span, dt, width)``: the longest record (s), the shortest sampling time and the input's range."""
-    return (max(r.u.size * r.dt for r in records), min(r.dt for r in records),
-            float(np.ptp(np.concatenate([r.u for r in records]))) or 1.0)
-
-
-def _row(prob: _Problem, rss: float) -> dict:
-    """A selection-table row of the fit of ``prob`` with residual sum of squares ``rss``."""
-    k = prob.n_outer + prob.degree
-    return {"type": prob.type, "structure": prob.label, "degree": prob.degree, "rss": rss, "parameters": k,
-            "aic": _criterion(rss, prob.y.size, k, prob.degree)}
-
-
-def _descend(probs, starts, max_nfev: int) -> list[tuple[np.ndarray, float]]:
-    """Each ``probs[i]`` fitted from ``starts[i]`` within its bounds, on every core: ``(theta, rss)``."""
-    span, dt, width = _extent(probs[0].records)
-
-    def one(i):
-        lo, hi = probs[i].bounds(width, span, dt)
-        sol = optimize.least_squares(probs[i].residual, np.clip(starts[i], lo + 1e-9, hi - 1e-9), bounds=(lo, hi),
-                                     method="trf", x_scale=1.0, max_nfev=max_nfev)
-        return sol.x, float(sol.fun @ sol.fun)
-    return forked_map(one, range(len(probs)))
-
-
-def _criterion(rss: float, n: int, k: int, degree: int) -> float:
-    """The selection's criterion of a fit with ``k`` parameters, ``degree`` of them h_bar's: BIC's
-    penalty on F, G and the initial states, AIC's on h_bar's coefficients (the module docstring
-    says why)."""
-    return float(n * np.log(rss / n) + (k - degree) * np.log(n) + 2 * degree)
-
-
-def _best_states(prob: _Problem, theta) -> np.ndarray:
-    """``theta`` with each experiment's initial gear put where it fits best of: against the lower
-    border, in the middle of the play, against the upper one (a Backlash-Inverse: nine places
-    across its branches' range; one experiment at a time). The gear's
-    place enters through a tanh: started on the wrong side, the search stalls where the tanh is flat."""
-    theta = np.array(theta, float)
-    j = prob.states_at
-    best = float(np.sum(prob.residual(theta) ** 2))
-    # a Backlash-Inverse's start spans its branches' whole range (_Problem.unpack): finer steps
-    places = (-6.0, 0.0, 6.0) if prob.type == "backlash" else \
-        tuple(float(np.clip(2 * np.arctanh(2 * q - 1), -6, 6)) if 0 < q < 1 else 6.0 * np.sign(q - 0.5)
-              for q in np.linspace(0, 1, 9))
-    for _ in prob.records:
-        for frac in places:
-            trial = theta.copy()
-            trial[j] = frac
-            cost = float(np.sum(prob.residual(trial) ** 2))
-            if cost < best:
-                best, theta = cost, trial
-        j += 2
-    return theta
-
-
-@njit(cache=True)
-def _power_sums(w, y, p):
-    """``sum w^k`` for k = 0..2p and ``sum y w^k`` for k = 1..p."""
-    sums = np.zeros(2 * p + 1)
-    rhs = np.zeros(p)
-    for i in range(w.shape[0]):
-        x = w[i]
-        q = 1.0
-        for k in range(2 * p + 1):
-            sums[k] += q
-            if 1 <= k <= p:
-                rhs[k - 1] += y[i] * q
-            q *= x
-    return sums, rhs
-
-
-@njit(cache=True)
-def _poly_residual(w, y, c):
-    """``y - sum_k c[k-1] w^k`` (Horner)."""
-    out = np.empty(w.shape[0])
-    p = c.shape[0]
-    for i in range(w.shape[0]):
-        acc = 0.0
-        for k in range(p - 1, -1, -1):
-            acc = (acc + c[k]) * w[i]
-        out[i] = y[i] - acc
-    return out
-
-
-def _origins(prob: _Problem, theta) -> list[float]:
+def _origins(prob: Problem, theta) -> list[float]:
     """Other places ``x0`` of h_bar's argument where h_bar is nearly zero (a local minimum of
     ``|h_bar|`` under a tenth of its range) within what the fit's ``w`` spans.
 
@@ -606,7 +391,7 @@ def _origins(prob: _Problem, theta) -> list[float]:
             if hv[i] <= hv[i - 1] and hv[i] <= hv[i + 1] and hv[i] < tol and abs(xs[i]) > away]
 
 
-def _moved(prob: _Problem, theta, x0: float) -> np.ndarray:
+def _moved(prob: Problem, theta, x0: float) -> np.ndarray:
     """``theta`` with the origin of h_bar's argument moved to ``x0``: F's output less ``x0``
     (a Backlash's borders at ``d + x0 / S``, a Backlash-Inverse's branches at ``d - x0``) and each
     record's G rest level less ``x0``; the gear's place in its band and G unchanged."""
@@ -622,63 +407,18 @@ def _moved(prob: _Problem, theta, x0: float) -> np.ndarray:
     return t
 
 
-def _other_origin(prob: _Problem, theta, lo, hi, max_nfev: int):
+def _other_origin(prob: Problem, theta, lo, hi, max_nfev: int):
     """The fit of ``prob`` from each of h_bar's other origins (:func:`_origins`); the outer
     parameters of the best, where it fits the records better than ``theta``, else None."""
     best = float(np.sum(prob.residual(theta) ** 2))
     found = None
     for x0 in _origins(prob, theta):
-        t = _best_states(prob, np.clip(_moved(prob, theta, x0), lo + 1e-9, hi - 1e-9))
+        t = best_states(prob, np.clip(_moved(prob, theta, x0), lo + 1e-9, hi - 1e-9))
         sol = optimize.least_squares(prob.residual, t, bounds=(lo, hi), method="trf", x_scale=1.0,
                                      max_nfev=max_nfev)
         if 2 * sol.cost < best * (1 - 1e-6):
             best, found = 2 * sol.cost, sol.x
     return found
-
-
-def correlation_time(residual, lengths, max_lag: int = 100) -> float:
-    """The residual's integrated autocorrelation time ``1 + 2 sum_k rho_k`` (samples), summed over
-    lags until the autocorrelation first turns negative, pooled over the records (``lengths``):
-    the factor by which correlated residuals carry less information than white ones."""
-    pieces = np.split(np.asarray(residual, float), np.cumsum(lengths)[:-1])
-    sums, counts = np.zeros(max_lag + 1), np.zeros(max_lag + 1)
-    for e in pieces:
-        e = e - e.mean()
-        for lag in range(min(max_lag + 1, e.size)):
-            sums[lag] += float(e[lag:] @ e[:e.size - lag])
-            counts[lag] += e.size - lag
-    if sums[0] <= 0:
-        return 1.0
-    rho = (sums / np.maximum(counts, 1)) / (sums[0] / counts[0])
-    tau = 1.0
-    for lag in range(1, max_lag + 1):
-        if counts[lag] == 0 or rho[lag] <= 0:
-            break
-        tau += 2 * rho[lag]
-    return float(tau)
-
-
-def _jacobian(fun, x, rel: float = 1e-6) -> np.ndarray:
-    """Central-difference Jacobian of ``fun`` at ``x``."""
-    f0 = fun(x)
-    jac = np.empty((f0.size, x.size))
-    for i in range(x.size):
-        h = rel * max(abs(x[i]), 1e-3)
-        e = np.zeros_like(x)
-        e[i] = h
-        jac[:, i] = (fun(x + e) - fun(x - e)) / (2 * h)
-    return jac
-
-
-def _grad(g, x, rel: float = 1e-7) -> np.ndarray:
-    """Gradient of the scalar ``g`` at ``x`` (central differences); returns ``(g(x), grad)``."""
-    out = np.zeros_like(x)
-    for i in range(x.size):
-        h = rel * max(abs(x[i]), 1e-3)
-        e = np.zeros_like(x)
-        e[i] = h
-        out[i] = (g(x + e) - g(x - e)) / (2 * h)
-    return float(g(x)), out
 
 
 def fit_records(records, periods: int = 3):

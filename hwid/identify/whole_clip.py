@@ -14,15 +14,16 @@ must earn them back on the validation part like any other effect.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hwid.identify.whole import (STRUCTURES, WholeModelFit, _best_states, _descend, _extent, _Problem, _row,
-                                 border_grid)
+from hwid.identify.defaults import CLIP_POINTS
+from hwid.identify.g_structure import STRUCTURES
+from hwid.identify.whole_problem import Problem, best_states, border_grid, descend, extent, table_row
 
-#: the limits the fit starts from: this many places of each, from the input's centre to its end,
-#: the last beyond the end (no limit on that side)
-CLIP_POINTS = 5
+if TYPE_CHECKING:      # the estimator whose step this is (it imports this module when run)
+    from hwid.identify.whole import WholeModelFit
 
 
 def fit_clip_added(fitter: WholeModelFit) -> tuple[float, float] | None:
@@ -45,21 +46,21 @@ def fit_clip_added(fitter: WholeModelFit) -> tuple[float, float] | None:
         for s in (fitter.structures or STRUCTURES):
             if s.order > base.structure.order:
                 continue
-            prob = _Problem(records, kind, s, base.degree, base.with_delay, with_clip=True)
+            prob = Problem(records, kind, s, base.degree, base.with_delay, with_clip=True)
             probs.append(prob)
             starts.append(_grid_start(fitter, prob))
             if (kind, s) == (base.type, base.structure):
                 # the selected fit's F, G and states (its slew rate left out), at its best limits
                 own = np.concatenate([theta[:base.rate_at], [0.0, 0.0], theta[base.states_at:]])
                 probs.append(prob)
-                starts.append(_best_states(prob, _best_limits(prob, own)))
-    fits = _descend(probs, starts, fitter.max_nfev)
+                starts.append(best_states(prob, _best_limits(prob, own)))
+    fits = descend(probs, starts, fitter.max_nfev)
     best: dict = {}
     for prob, (x, rss) in zip(probs, fits):       # one row per type and structure: its better start
         key = (prob.type, str(prob.structure))
         if key not in best or rss < best[key][2]:
             best[key] = (prob, x, rss)
-    rows = [_row(p, rss) for p, _, rss in best.values()]
+    rows = [table_row(p, rss) for p, _, rss in best.values()]
     i = int(np.argmin([r["aic"] for r in rows]))
     table = list(fitter.result_.selection) + rows
     if rows[i]["aic"] >= min(r["aic"] for r in fitter.result_.selection):
@@ -72,10 +73,10 @@ def fit_clip_added(fitter: WholeModelFit) -> tuple[float, float] | None:
     # the limits must earn their parameters against their own fit without them: from another
     # start the search may only have found a better valley (limits beyond the input's reach, or
     # pressed into its last levels), which is the model's, not the actuator's
-    free = _Problem(records, prob.type, prob.structure, prob.degree, prob.with_delay)
+    free = Problem(records, prob.type, prob.structure, prob.degree, prob.with_delay)
     k = prob.clip_at
-    (x0, rss0), = _descend([free], [np.concatenate([x[:k], x[k + 2:]])], fitter.max_nfev)
-    row0 = _row(free, rss0)
+    (x0, rss0), = descend([free], [np.concatenate([x[:k], x[k + 2:]])], fitter.max_nfev)
+    row0 = table_row(free, rss0)
     table.append(row0)
     if row0["aic"] <= rows[i]["aic"]:
         if row0["aic"] < min(r["aic"] for r in fitter.result_.selection):
@@ -85,27 +86,27 @@ def fit_clip_added(fitter: WholeModelFit) -> tuple[float, float] | None:
         return None
     lo, hi = prob.clip(x)
     fitter.hold(prob, x, table, f"the input is clipped to [{lo:.4g}, {hi:.4g}] in this fit; F, G and h are "
-                                "fitted with it, and the model here leaves it out")
+                                "fitted with it, and the model keeps it")
     return lo, hi
 
 
-def _pressed_inward(prob: _Problem, lo: float, hi: float) -> bool:
+def _pressed_inward(prob: Problem, lo: float, hi: float) -> bool:
     """Whether a limit sits at the input's centre, the inner end of its range (within 2 % of the
     range): the fit then wants the input stopped short of half its travel, which is the clip
     standing in for something else (a 4 s sensor lag on the paper's plant was fitted with an
     actuator that never passed -0.1 of a range -1.4 to 1.2), not an actuator that stops short."""
     (_, lo_in), (hi_in, _) = prob.clip_bounds()
-    tol = 0.02 * _extent(prob.records)[2]
+    tol = 0.02 * extent(prob.records)[2]
     return bool(lo >= lo_in - tol or hi <= hi_in + tol)
 
 
-def _grid_start(fitter: WholeModelFit, prob: _Problem) -> np.ndarray:
+def _grid_start(fitter: WholeModelFit, prob: Problem) -> np.ndarray:
     """A start for ``prob`` from the border grid and G's default: the grid's best borders without
     limits, the best limits for them, the grid's best borders again with those limits, and the
     best limits for these (a clip moves where the borders fit best, and the borders where the
     limits do)."""
     k = prob.clip_at
-    start = WholeModelFit(fitter.max_degree, [prob.structure], prob.with_delay, (prob.type,))._start(
+    start = fitter.variant([prob.structure], prob.with_delay, (prob.type,)).start_values(
         prob.records, prob.type, prob.structure, None)
     theta = _best_limits(prob, np.concatenate([start[:k], [0.0, 0.0], start[k:]]))
     trials = []
@@ -114,10 +115,10 @@ def _grid_start(fitter: WholeModelFit, prob: _Problem) -> np.ndarray:
         t[0], t[2] = d_plus, log_gap
         trials.append(t)
     theta = min(trials + [theta], key=lambda t: float(np.sum(prob.residual(t) ** 2)))
-    return _best_states(prob, _best_limits(prob, theta))
+    return best_states(prob, _best_limits(prob, theta))
 
 
-def _best_limits(prob: _Problem, theta) -> np.ndarray:
+def _best_limits(prob: Problem, theta) -> np.ndarray:
     """``theta`` with the limits at the best of :func:`_limit_pairs`."""
     k = prob.clip_at
     trials = []
@@ -128,7 +129,7 @@ def _best_limits(prob: _Problem, theta) -> np.ndarray:
     return min(trials, key=lambda t: float(np.sum(prob.residual(t) ** 2)))
 
 
-def _limit_pairs(prob: _Problem) -> list[np.ndarray]:
+def _limit_pairs(prob: Problem) -> list[np.ndarray]:
     """Starting limits: ``CLIP_POINTS`` places of each from the input's centre outwards, the last
     at its bound (beyond the input's range)."""
     (lo_a, lo_b), (hi_a, hi_b) = prob.clip_bounds()

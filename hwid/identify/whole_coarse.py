@@ -20,17 +20,9 @@ import dataclasses
 
 import numpy as np
 
-from hwid.identify.whole import _row
+from hwid.identify.defaults import COARSE_SAMPLES, POLISH_BEST, POLISH_NFEV, READ_ALL
+from hwid.identify.whole_problem import table_row
 from hwid.plant import Record
-
-#: records of at most this many samples in all are descended on every sample
-READ_ALL = 20000
-#: the coarse descent reads about this many samples in all
-COARSE_SAMPLES = 8000
-#: the most function evaluations of the polish on every sample (each with its Jacobian), and the
-#: most coarse fits polished
-POLISH_NFEV = 20
-POLISH_BEST = 4
 
 
 def thinning(records) -> int:
@@ -78,6 +70,6 @@ def coarse_first(probs, starts, max_nfev: int, descend, pick=None) -> tuple[list
     coarse = [dataclasses.replace(p, records=[thinned(r, k) for r in p.records]) for p in probs]
     fits = descend(coarse, starts, max_nfev)
     keep = list(range(len(probs))) if pick is None else list(pick(coarse, fits))
-    keep = sorted(keep, key=lambda i: _row(coarse[i], fits[i][1])["aic"])[:POLISH_BEST]
+    keep = sorted(keep, key=lambda i: table_row(coarse[i], fits[i][1])["aic"])[:POLISH_BEST]
     probs = [probs[i] for i in keep]
     return probs, descend(probs, [fits[i][0] for i in keep], POLISH_NFEV)

@@ -10,12 +10,16 @@ delay as the fallback.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import optimize
 
-from hwid.identify.whole import (STRUCTURES, Structure, WholeModelFit, _descend, _extent, _Problem, _row,
-                                 g_from_params, g_params_from)
+from hwid.identify.g_structure import STRUCTURES, Structure, g_from_params, g_params_from
+from hwid.identify.whole_problem import Problem, descend, extent, table_row
+
+if TYPE_CHECKING:      # the estimator whose step this is (it imports this module when run)
+    from hwid.identify.whole import WholeModelFit
 
 
 def fit_delay_added(fitter: WholeModelFit, records, borders=None) -> WholeModelFit:
@@ -31,16 +35,15 @@ def fit_delay_added(fitter: WholeModelFit, records, borders=None) -> WholeModelF
     type, degree, borders, h_bar and initial states are the delayed fits' starts; only G and the
     delay are new, so no staged selection is run again."""
     f = fitter
-    plain = WholeModelFit(f.max_degree, f.structures, False, f.types, f.max_nfev, f.staged).fit(records,
-                                                                                             borders=borders)
+    plain = f.variant(delay=False).fit(records, borders=borders)
     base, theta = plain.problem_, np.asarray(plain.theta_, float)
     records = base.records
-    span, dt, width = _extent(records)
-    delayed = WholeModelFit(f.max_degree, f.structures, True, (base.type,), f.max_nfev, f.staged)
-    probs = [_Problem(records, base.type, s, base.degree, True)
+    span, dt, width = extent(records)
+    delayed = f.variant(delay=True, types=(base.type,))
+    probs = [Problem(records, base.type, s, base.degree, True)
              for s in (f.structures or STRUCTURES) if s.order <= base.structure.order]
-    fits = _descend(probs, [_delayed_start(base, theta, p.structure, span, dt) for p in probs], f.max_nfev)
-    rows = [_row(p, rss) for p, (_, rss) in zip(probs, fits)]
+    fits = descend(probs, [_delayed_start(base, theta, p.structure, span, dt) for p in probs], f.max_nfev)
+    rows = [table_row(p, rss) for p, (_, rss) in zip(probs, fits)]
     i = int(np.argmin([r["aic"] for r in rows]))
     prob, x = probs[i], fits[i][0]
     table = list(plain.result_.selection) + rows
@@ -51,13 +54,13 @@ def fit_delay_added(fitter: WholeModelFit, records, borders=None) -> WholeModelF
     pole = pole_for_delay(prob, x, width, span, dt, f.max_nfev)
     if pole is not None:
         prob, x, rss = pole
-        table.append(_row(prob, rss))
+        table.append(table_row(prob, rss))
     fitter.problem_, fitter.theta_ = prob, x
     fitter.result_ = delayed._result(prob, x, table)
     return fitter
 
 
-def _delayed_start(base: _Problem, theta, structure: Structure, span: float, dt: float) -> np.ndarray:
+def _delayed_start(base: Problem, theta, structure: Structure, span: float, dt: float) -> np.ndarray:
     """Start of a fit with G's delay from the fit ``theta`` of ``base`` (no delay): its borders and
     initial states; G of ``structure`` from its slowest real poles and pairs and its zeros (a
     structure's default where it lacks them), and the delay the group delay at ``w = 0`` of the
@@ -80,7 +83,7 @@ def _delayed_start(base: _Problem, theta, structure: Structure, span: float, dt:
     return np.concatenate([theta[:3], p, [lag], theta[k:]])
 
 
-def pole_for_delay(prob: _Problem, theta, width: float, span: float, dt: float, max_nfev: int):
+def pole_for_delay(prob: Problem, theta, width: float, span: float, dt: float, max_nfev: int):
     """The selected fit's delay replaced by one more real pole or one more pole pair, where that
     fits the records at least as well by the information criterion: ``(problem, theta, rss)`` of
     the best fit without a delay, else None.
@@ -102,7 +105,7 @@ def pole_for_delay(prob: _Problem, theta, width: float, span: float, dt: float, 
     return _added_dynamics(prob, theta, [np.concatenate([t[:k], t[k + 1:]])], delay, 1, width, span, dt, max_nfev)
 
 
-def pole_for_rhp_zero(prob: _Problem, theta, width: float, span: float, dt: float, max_nfev: int):
+def pole_for_rhp_zero(prob: Problem, theta, width: float, span: float, dt: float, max_nfev: int):
     """A fit without a delay whose G has zeros in the right half plane, tried again with one more
     real pole or one more pole pair (the zeros started where they are and mirrored into the left
     half plane): ``(problem, theta, rss)`` of the best that fits the records at least as well by
@@ -127,7 +130,7 @@ def pole_for_rhp_zero(prob: _Problem, theta, width: float, span: float, dt: floa
     return _added_dynamics(prob, theta, [t, mirrored], lag, 0, width, span, dt, max_nfev)
 
 
-def _added_dynamics(prob: _Problem, theta, starts, lag: float, freed: int, width: float, span: float,
+def _added_dynamics(prob: Problem, theta, starts, lag: float, freed: int, width: float, span: float,
                     dt: float, max_nfev: int):
     """Fits without a delay of ``prob``'s structure with one more real pole and with one more pole
     pair, each from every one of ``starts`` (``prob``'s parameters without a delay), the new pole

@@ -13,16 +13,18 @@ validation part like any other effect.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hwid.identify.defaults import FOLLOW_SHARE, RATE_POINTS
+from hwid.identify.g_structure import STRUCTURES
 from hwid.identify.whole_coarse import coarse_first
 from hwid.identify.whole_delay import pole_for_rhp_zero
-from hwid.identify.whole import STRUCTURES, WholeModelFit, _best_states, _descend, _extent, _Problem, _row
+from hwid.identify.whole_problem import Problem, best_states, descend, extent, table_row
 
-#: the rates the fit starts from: this many, from crossing the input's range in two minutes to
-#: crossing it in ten samples
-RATE_POINTS = 8
+if TYPE_CHECKING:      # the estimator whose step this is (it imports this module when run)
+    from hwid.identify.whole import WholeModelFit
 
 
 def fit_rate_added(fitter: WholeModelFit) -> float | None:
@@ -31,7 +33,7 @@ def fit_rate_added(fitter: WholeModelFit) -> float | None:
     stands in for the slow poles the fit without it added). The fit without the rate is no start:
     it has bent F, G and h to mimic the slow actuator (the rig above came out a Backlash-Inverse
     of slope 4.3 for a Backlash of slope 0.67), so each type and structure starts from the border
-    grid and G's default (:meth:`WholeModelFit._start`), at the best of ``RATE_POINTS`` rates,
+    grid and G's default (:meth:`WholeModelFit.start_values`), at the best of ``RATE_POINTS`` rates,
     and every one is descended (on a third-order rig slewing at 0.22 units/s, the best four
     starts all stopped in other valleys: a Backlash-Inverse at 0.06 units/s, 4.8x the noise; the
     fourteen, 5-8 s in all, found 0.236 at 1.45x), and from the two best borders, rates and
@@ -51,11 +53,11 @@ def fit_rate_added(fitter: WholeModelFit) -> float | None:
     table = list(fitter.result_.selection) + rows
     # a right-half-plane zero standing in for a pole the structure lacks (order no higher than the
     # fit without the rate), which the diagnosis would take out as a delay
-    span, dt, width = _extent(prob.records)
+    span, dt, width = extent(prob.records)
     pole = pole_for_rhp_zero(prob, x, width, span, dt, fitter.max_nfev)
     if pole is not None:
         prob, x, rss = pole
-        row = _row(prob, rss)
+        row = table_row(prob, rss)
         table.append(row)
     if row["aic"] >= min(r["aic"] for r in fitter.result_.selection) or not _follows(prob, x):
         fitter.result_ = replace(fitter.result_, selection=tuple(table))
@@ -63,10 +65,6 @@ def fit_rate_added(fitter: WholeModelFit) -> float | None:
     _keep(fitter, prob, x, table)
     return prob.rate(x)
 
-
-#: the least share of the commanded input's range an actuator slewing at a fitted rate must reach
-#: for the rate to be kept (:func:`_follows`)
-FOLLOW_SHARE = 0.5
 
 
 def _follows(prob, theta) -> bool:
@@ -116,9 +114,9 @@ def _joint_combos(fitter: WholeModelFit, records, kind: str, ref, degree: int, w
     """``(carried, borders, log rate)`` over the border grid, the rates and both memories, best
     first, each scored on structure ``ref``'s default G."""
     combos = []
-    grids = WholeModelFit(fitter.max_degree, [ref], with_delay, (kind,)).grid(records, ref)
+    grids = fitter.variant([ref], with_delay, (kind,)).grid(records, ref)
     for carried in (False, True):
-        prob = _Problem(records, kind, ref, degree, with_delay, True, carried=carried)
+        prob = Problem(records, kind, ref, degree, with_delay, True, carried=carried)
         for grid in grids:
             for r in rates:
                 t = np.concatenate([grid[:prob.rate_at], [r], grid[prob.rate_at:]])
@@ -131,7 +129,7 @@ def _rate_fits(fitter: WholeModelFit, records, degree: int, with_delay: bool, ma
                coarse: bool = False):
     """Each type and structure (of order up to ``max_order``) with the rate fitted, from the border
     grid at the best of ``RATE_POINTS`` rates and of the actuator's two memories (reset to each
-    record's first input, or carried over from the record before: :attr:`_Problem.carried`), and
+    record's first input, or carried over from the record before: :attr:`Problem.carried`), and
     from the ``joint_starts`` best borders, rates and memories chosen together
     (:func:`_joint_combos`); every start descended (``coarse``: long records on every few samples
     first, :mod:`hwid.identify.whole_coarse`), each type and structure kept by its best:
@@ -140,7 +138,7 @@ def _rate_fits(fitter: WholeModelFit, records, degree: int, with_delay: bool, ma
     A slow actuator's memory decides its fit: the test rig that crosses [-1, 1] in 15 s with its
     position carried from call to call, fitted as reset, ended at 0.26 units/s (the truth 0.133)
     and 13x the noise; a slow actuator its driver resets was found either way."""
-    _, dt, width = _extent(records)
+    _, dt, width = extent(records)
     rates = np.log(np.geomspace(width / 120.0, width / (10 * dt), RATE_POINTS))
     structures = [s for s in (fitter.structures or STRUCTURES) if s.order <= max_order]
     probs, starts = [], []
@@ -151,32 +149,32 @@ def _rate_fits(fitter: WholeModelFit, records, degree: int, with_delay: bool, ma
         joint = _joint_combos(fitter, records, kind, structures[0], degree, with_delay, rates)[:joint_starts] \
             if joint_starts else []
         for s in structures:
-            grid = WholeModelFit(fitter.max_degree, [s], with_delay, (kind,))._start(records, kind, s, None)
+            grid = fitter.variant([s], with_delay, (kind,)).start_values(records, kind, s, None)
             trials = []
             for carried in (False, True):
-                prob = _Problem(records, kind, s, degree, with_delay, True, carried=carried)
+                prob = Problem(records, kind, s, degree, with_delay, True, carried=carried)
                 k = prob.rate_at
                 for r in rates:
                     t = np.concatenate([grid[:k], [r], grid[k:]])
                     trials.append((float(np.sum(prob.residual(t) ** 2)), prob, t))
             _, prob, t = min(trials, key=lambda c: c[0])
             probs.append(prob)
-            starts.append(_best_states(prob, t))
+            starts.append(best_states(prob, t))
             for carried, borders, r in joint:
-                prob = _Problem(records, kind, s, degree, with_delay, True, carried=carried)
+                prob = Problem(records, kind, s, degree, with_delay, True, carried=carried)
                 t = np.concatenate([borders, grid[3:prob.rate_at], [r], grid[prob.rate_at:]])
                 probs.append(prob)
-                starts.append(_best_states(prob, t))
+                starts.append(best_states(prob, t))
     pick = _best_of_each if joint_starts else None       # each type and structure by its best descent
-    done = coarse_first(probs, starts, fitter.max_nfev, _descend, pick) if coarse else None
+    done = coarse_first(probs, starts, fitter.max_nfev, descend, pick) if coarse else None
     if done is not None:
         probs, fits = done
     else:
-        fits = _descend(probs, starts, fitter.max_nfev)
+        fits = descend(probs, starts, fitter.max_nfev)
         if pick is not None:
             keep = pick(probs, fits)
             probs, fits = [probs[i] for i in keep], [fits[i] for i in keep]
-    rows = [_row(p, rss) for p, (_, rss) in zip(probs, fits)]
+    rows = [table_row(p, rss) for p, (_, rss) in zip(probs, fits)]
     return probs, fits, rows
 
 
@@ -195,4 +193,4 @@ def _keep(fitter: WholeModelFit, prob, x, table) -> None:
     the result is read: whole.h5, the JSON's notes)."""
     memory = "carried over from record to record" if prob.carried else "set at each record's first input"
     fitter.hold(prob, x, table, f"the input slews at {prob.rate(x):.4g} units/s in this fit (the actuator's "
-                                f"position {memory}); F, G and h are fitted with it, and the model here leaves it out")
+                                f"position {memory}); F, G and h are fitted with it, and the model keeps it")

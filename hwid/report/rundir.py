@@ -28,13 +28,11 @@ from hwid import HwidError, config, paper
 from hwid.blocks.linear import LinearBlock
 from hwid.blocks.static import PiecewiseH, PolynomialH
 from hwid.identify.result import HistoryResult, LinearResult, NonlinearResult, WholeResult
-from hwid.model import HWModel, InputNonlinearity, from_config
+from hwid.model import Actuator, HWModel, InputNonlinearity, from_config
 from hwid.plant import Record
 from hwid.results import (ResultsError, open_results, read_batch_summary, read_compare, read_diagnosis, read_dict,
                           read_history, read_linear, read_nonlinear, read_records, read_whole)
-
-FILES = ("simulation.h5", "nonlinear.h5", "linear.h5", "batch.h5", "diagnosis.h5", "compare.h5", "whole.h5",
-         "history.h5")
+from hwid.rundir import BATCH, COMPARE, DIAGNOSIS, FILES, HISTORY, LINEAR, NONLINEAR, SIMULATION, WHOLE
 
 # The signals the figures draw: a staircase's input, output and undisturbed output; a sine's output
 # and undisturbed output (its input, as long as its output, is not read). v, w, z are never read.
@@ -81,38 +79,38 @@ def load_run(directory: str | Path) -> RunData:
 
     records: dict[str, Record] = {}
     truth = None
-    if present["simulation.h5"]:
-        records, truth = _read_simulation(directory / "simulation.h5", notes)
+    if present[SIMULATION]:
+        records, truth = _read_simulation(directory / SIMULATION, notes)
     if truth is None and cfg is not None and cfg.plant.kind == "hammerstein_wiener":
         truth = from_config(cfg.plant).normalised()
 
-    batch_only = (present["batch.h5"] or present["diagnosis.h5"] or present["compare.h5"]) and not any(
+    batch_only = (present[BATCH] or present[DIAGNOSIS] or present[COMPARE]) and not any(
         present[n] for n in FILES[:3])
     nonlinear = linear = None
-    if present["nonlinear.h5"]:
-        nonlinear = read_nonlinear(directory / "nonlinear.h5", cfg)
-        records.update(_read_experiments(directory / "nonlinear.h5", "nonlinear", skip=set(records)))
+    if present[NONLINEAR]:
+        nonlinear = read_nonlinear(directory / NONLINEAR, cfg)
+        records.update(_read_experiments(directory / NONLINEAR, "nonlinear", skip=set(records)))
     elif not batch_only:
         notes.append("nonlinear.h5 is missing: stage 1 (the input and output nonlinearities) has not "
                      "run here; run `hwid run` or the stage 1 command to get Table 1 and Figs. 9, 12")
-    if present["linear.h5"]:
-        linear = read_linear(directory / "linear.h5", cfg)
-        records.update(_read_experiments(directory / "linear.h5", "linear", skip=set(records)))
+    if present[LINEAR]:
+        linear = read_linear(directory / LINEAR, cfg)
+        records.update(_read_experiments(directory / LINEAR, "linear", skip=set(records)))
     elif not batch_only:
         notes.append("linear.h5 is missing: stage 2 (G(jω)) has not run here; Table 2 and the Bode "
                      "plot are not shown")
-    if not present["simulation.h5"] and not records and not batch_only:
+    if not present[SIMULATION] and not records and not batch_only:
         notes.append("simulation.h5 is missing: no measured experiments to plot")
-    batch = read_batch_summary(directory / "batch.h5") if present["batch.h5"] else None
+    batch = read_batch_summary(directory / BATCH) if present[BATCH] else None
     diagnosis = None
-    if present["diagnosis.h5"]:
+    if present[DIAGNOSIS]:
         try:
-            diagnosis = read_diagnosis(directory / "diagnosis.h5")
+            diagnosis = read_diagnosis(directory / DIAGNOSIS)
         except ResultsError as err:
             notes.append(f"diagnosis.h5 could not be read ({err})")
-    compare = read_compare(directory / "compare.h5") if present["compare.h5"] else None
-    whole = read_whole(directory / "whole.h5", cfg) if present["whole.h5"] else None
-    history = read_history(directory / "history.h5", cfg) if present["history.h5"] else None
+    compare = read_compare(directory / COMPARE) if present[COMPARE] else None
+    whole = read_whole(directory / WHOLE, cfg) if present[WHOLE] else None
+    history = read_history(directory / HISTORY, cfg) if present[HISTORY] else None
     return RunData(directory, present, provenance, cfg, config_name, records, truth, nonlinear, linear,
                    batch, diagnosis, compare, whole, history, tuple(notes))
 
@@ -207,4 +205,4 @@ def _model_from_dict(d: dict) -> HWModel:
     return HWModel(InputNonlinearity(str(f["type"]), float(f["slope_up"]), float(f["slope_down"]),
                                      float(f["d_plus"]), float(f["d_minus"])),
                    LinearBlock(floats(lin["num"]), floats(lin["den"]), float(lin["delay"])),
-                   h)
+                   h, Actuator.from_dict(d.get("actuator")))
