@@ -14,19 +14,18 @@ must earn them back on the validation part like any other effect.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from hwid.identify.defaults import CLIP_POINTS
 from hwid.identify.g_structure import STRUCTURES
 from hwid.identify.whole_problem import Problem, best_states, border_grid, descend, extent, table_row
 
-if TYPE_CHECKING:      # the estimator whose step this is (it imports this module when run)
-    from hwid.identify.whole import WholeModelFit
+#: the :class:`hwid.identify.whole.WholeModelFit` whose step this is (it calls this module, so the
+#: type is named here, not imported)
+Estimator = object
 
 
-def fit_clip_added(fitter: WholeModelFit) -> tuple[float, float] | None:
+def fit_clip_added(fitter: Estimator) -> tuple[float, float] | None:
     """After ``fitter``'s fit: its degree and delay again with the input's limits fitted too, for
     each input type tried and the structures of no higher order than the selected (without the
     slew rate: where the selected fit has one, it may be what stood in for the clip). The fit
@@ -100,7 +99,7 @@ def _pressed_inward(prob: Problem, lo: float, hi: float) -> bool:
     return bool(lo >= lo_in - tol or hi <= hi_in + tol)
 
 
-def _grid_start(fitter: WholeModelFit, prob: Problem) -> np.ndarray:
+def _grid_start(fitter: Estimator, prob: Problem) -> np.ndarray:
     """A start for ``prob`` from the border grid and G's default: the grid's best borders without
     limits, the best limits for them, the grid's best borders again with those limits, and the
     best limits for these (a clip moves where the borders fit best, and the borders where the

@@ -10,19 +10,18 @@ delay as the fallback.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING
-
 import numpy as np
 from scipy import optimize
 
 from hwid.identify.g_structure import STRUCTURES, Structure, g_from_params, g_params_from
 from hwid.identify.whole_problem import Problem, descend, extent, table_row
 
-if TYPE_CHECKING:      # the estimator whose step this is (it imports this module when run)
-    from hwid.identify.whole import WholeModelFit
+#: the :class:`hwid.identify.whole.WholeModelFit` whose step this is (it calls this module, so the
+#: type is named here, not imported)
+Estimator = object
 
 
-def fit_delay_added(fitter: WholeModelFit, records, borders=None) -> WholeModelFit:
+def fit_delay_added(fitter: Estimator, records, borders=None) -> Estimator:
     """``fitter``'s :meth:`~WholeModelFit.fit` without a delay, then with G's delay over the
     selected type and degree and the structures of no higher order (a delay stands in for poles,
     it adds none), each started from the fit without it (:func:`_delayed_start`); the better of

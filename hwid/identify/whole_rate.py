@@ -13,8 +13,6 @@ validation part like any other effect.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from hwid.identify.defaults import FOLLOW_SHARE, RATE_POINTS
@@ -23,11 +21,12 @@ from hwid.identify.whole_coarse import coarse_first
 from hwid.identify.whole_delay import pole_for_rhp_zero
 from hwid.identify.whole_problem import Problem, best_states, descend, extent, table_row
 
-if TYPE_CHECKING:      # the estimator whose step this is (it imports this module when run)
-    from hwid.identify.whole import WholeModelFit
+#: the :class:`hwid.identify.whole.WholeModelFit` whose step this is (it calls this module, so the
+#: type is named here, not imported)
+Estimator = object
 
 
-def fit_rate_added(fitter: WholeModelFit) -> float | None:
+def fit_rate_added(fitter: Estimator) -> float | None:
     """After ``fitter``'s fit: its degree and delay again with the input's slew rate fitted too,
     for each input type tried and the structures of no higher order than the selected (the rate
     stands in for the slow poles the fit without it added). The fit without the rate is no start:
@@ -82,7 +81,7 @@ def _follows(prob, theta) -> bool:
     return not commanded > 0 or reached >= FOLLOW_SHARE * commanded
 
 
-def fit_rate_first(fitter: WholeModelFit, records) -> float:
+def fit_rate_first(fitter: Estimator, records) -> float:
     """The whole model with the input's slew rate from the start, where the records say the input
     did not follow (stage 2 found no harmonic above the noise at half its sines or more: the sines
     were too fast for the actuator, :func:`hwid.diagnose.sim_side.g_undetermined`). Every type and
@@ -110,7 +109,7 @@ def fit_rate_first(fitter: WholeModelFit, records) -> float:
     return probs[i].rate(fits[i][0])
 
 
-def _joint_combos(fitter: WholeModelFit, records, kind: str, ref, degree: int, with_delay: bool, rates) -> list:
+def _joint_combos(fitter: Estimator, records, kind: str, ref, degree: int, with_delay: bool, rates) -> list:
     """``(carried, borders, log rate)`` over the border grid, the rates and both memories, best
     first, each scored on structure ``ref``'s default G."""
     combos = []
@@ -125,7 +124,7 @@ def _joint_combos(fitter: WholeModelFit, records, kind: str, ref, degree: int, w
     return [c[1:] for c in combos]
 
 
-def _rate_fits(fitter: WholeModelFit, records, degree: int, with_delay: bool, max_order: int, joint_starts: int = 0,
+def _rate_fits(fitter: Estimator, records, degree: int, with_delay: bool, max_order: int, joint_starts: int = 0,
                coarse: bool = False):
     """Each type and structure (of order up to ``max_order``) with the rate fitted, from the border
     grid at the best of ``RATE_POINTS`` rates and of the actuator's two memories (reset to each
@@ -188,7 +187,7 @@ def _best_of_each(probs, fits) -> list[int]:
     return list(best.values())
 
 
-def _keep(fitter: WholeModelFit, prob, x, table) -> None:
+def _keep(fitter: Estimator, prob, x, table) -> None:
     """``fitter`` holds the fit with a rate; its result says the model leaves the rate out (where
     the result is read: whole.h5, the JSON's notes)."""
     memory = "carried over from record to record" if prob.carried else "set at each record's first input"
