@@ -18,7 +18,8 @@ from pathlib import Path
 
 from hwid.plant import make_plant
 from hwid.results import write_simulation
-from hwid.rundir import RIG_JOURNAL, SIMULATION
+from hwid.results import write_json
+from hwid.rundir import IDENTIFICATION_JSON, RIG_JOURNAL, SIMULATION
 
 
 def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
@@ -42,6 +43,11 @@ def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
     paths.update(ident.paths)
     times["identification"] = time.perf_counter() - t0
     echo(f"model: {ident.route} ({ident.why}; {times['identification']:.1f} s)")
+    write_json(out / IDENTIFICATION_JSON, ident.to_dict())
+    paths["identification"] = out / IDENTIFICATION_JSON
+    if ident.adequacy is not None and ident.adequacy.verdict != "adequate":
+        echo(f"{ident.adequacy.verdict.upper()}: the model's estimates above are not to be trusted as they stand "
+             f"({ident.adequacy.reason})")
     if report:
         from hwid.report.html import write_report
         t0 = time.perf_counter()

@@ -20,6 +20,8 @@ DIAGNOSIS_JSON = "diagnosis.json"
 #: a comparison and its JSON summary: :func:`hwid.results.write_compare`
 COMPARE = "compare.h5"
 COMPARE_JSON = "compare.json"
+#: ``hwid run``'s identification: the route (stages or whole), why, the model and its adequacy
+IDENTIFICATION_JSON = "identification.json"
 #: an external rig's journalled calls (a rerun after a failure reuses them)
 RIG_JOURNAL = "rig_journal"
 #: the HTML report's folder

@@ -260,7 +260,7 @@ def render_html(run: RunData, items: list[FigureItem], pngs: dict[str, bytes],
              f"<style>{CSS}</style><script>{SCRIPT}</script></head>",
              f"<body data-figures='{len(items)}'><h1>{_html.escape(title)}</h1>",
              f"<p>Run directory <code>{_html.escape(str(run.directory))}</code>: {present}.</p>", notes,
-             "<h2>Identified model</h2>", tables.model_html(run)]
+             "<h2>Identified model</h2>", tables.model_html(run), tables.adequacy_html(run)]
     if run.records or run.nonlinear is not None:
         parts += ["<h2>Stage 1: the nonlinearities (Section 4, Table 1)</h2>",
                   "<h3>Table 1: steady-state outputs X̂<sub>j</sub>(M), eq. (9)</h3>",

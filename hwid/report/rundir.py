@@ -19,6 +19,7 @@ the batch summary and the diagnosis as the plain dicts their readers return. Not
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -32,7 +33,7 @@ from hwid.model import Actuator, HWModel, InputNonlinearity, from_config
 from hwid.plant import Record
 from hwid.results import (ResultsError, open_results, read_batch_summary, read_compare, read_diagnosis, read_dict,
                           read_history, read_linear, read_nonlinear, read_records, read_whole)
-from hwid.rundir import BATCH, COMPARE, DIAGNOSIS, FILES, HISTORY, LINEAR, NONLINEAR, SIMULATION, WHOLE
+from hwid.rundir import BATCH, COMPARE, DIAGNOSIS, FILES, HISTORY, IDENTIFICATION_JSON, LINEAR, NONLINEAR, SIMULATION, WHOLE
 
 # The signals the figures draw: a staircase's input, output and undisturbed output; a sine's output
 # and undisturbed output (its input, as long as its output, is not read). v, w, z are never read.
@@ -58,6 +59,7 @@ class RunData:
     compare: dict | None = None                   # hwid.results.read_compare(...)
     whole: WholeResult | None = None              # the whole-model fit
     history: HistoryResult | None = None          # stage 1 from a recorded history
+    identification: dict | None = None            # identification.json: route, why, adequacy
     notes: tuple[str, ...] = ()                   # what is missing, what could not be shown
 
     @property
@@ -111,8 +113,20 @@ def load_run(directory: str | Path) -> RunData:
     compare = read_compare(directory / COMPARE) if present[COMPARE] else None
     whole = read_whole(directory / WHOLE, cfg) if present[WHOLE] else None
     history = read_history(directory / HISTORY, cfg) if present[HISTORY] else None
+    identification = _read_identification(directory / IDENTIFICATION_JSON, notes)
     return RunData(directory, present, provenance, cfg, config_name, records, truth, nonlinear, linear,
-                   batch, diagnosis, compare, whole, history, tuple(notes))
+                   batch, diagnosis, compare, whole, history, identification, tuple(notes))
+
+
+def _read_identification(path: Path, notes: list) -> dict | None:
+    """``hwid run``'s ``identification.json`` (route, why, adequacy), or None where absent or unreadable."""
+    if not path.is_file():
+        return None
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as err:
+        notes.append(f"{path.name} could not be read ({type(err).__name__})")
+        return None
 
 
 def _present_files(directory: Path) -> dict[str, bool]:

@@ -396,6 +396,24 @@ def model_html(run: RunData) -> str:
     return "<table class='model'>" + "".join(_tr([f"<b>{k}</b>", v]) for k, v in rows) + "</table>"
 
 
+def adequacy_html(run: RunData) -> str:
+    """The model's route (stages or whole fit, and why) and its adequacy against a noise floor
+    estimated from the data (:mod:`hwid.adequacy`), from ``identification.json``."""
+    ident = run.identification or {}
+    ad = ident.get("adequacy")
+    if not ident:
+        return ""
+    rows = [("route", _html.escape(f"{ident.get('route')}: {ident.get('why', '')}"))]
+    if ad:
+        floor = ad.get("floor") or {}
+        held = ad.get("rms_held_out")
+        rows += [("adequacy", f"<b>{_html.escape(str(ad.get('verdict')).upper())}</b>: {_html.escape(str(ad.get('reason', '')))}"),
+                 ("RMS on the fit records", f"{ad.get('rms_fit'):.4g}" if ad.get("rms_fit") is not None else "–"),
+                 ("RMS on held-out records", "none held out" if held is None else f"{held:.4g}"),
+                 ("noise floor", _html.escape(f"{floor.get('sigma', float('nan')):.4g} ({floor.get('source')})"))]
+    return "<table class='model'>" + "".join(_tr([f"<b>{k}</b>", v]) for k, v in rows) + "</table>"
+
+
 def warnings_html(run: RunData) -> str:
     """The stages' warnings and the failed runs of a batch."""
     items = []
