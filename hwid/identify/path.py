@@ -317,6 +317,19 @@ def _said(cfg, fitter, out, echo, t0: float, role: str = "model"):
 
 # --------------------------------------------------------------------------- a recorded plant
 
+def _input_moves(cfg, records) -> None:
+    """:class:`hwid.HwidError` (one line) where the records' input does not move enough to identify
+    anything from: fewer than three distinct values (a play, G and h cannot be told apart from one
+    or two levels)."""
+    u = np.concatenate([np.asarray(r.u, float) for r in records])
+    distinct = np.unique(u[np.isfinite(u)])
+    if distinct.size < 3:
+        held = ", ".join(f"{x:.4g}" for x in distinct[:2])
+        raise HwidError(f"{cfg.source_path}: the records' input takes only {distinct.size} value(s) ({held}): "
+                        "no model can be identified from it; record an input that moves across the play "
+                        "(levels approached from both sides, or a sine)")
+
+
 def _from_records(cfg, records, out: Path | None, echo, stage_results: bool) -> Identification:
     """A recorded plant (module docstring): split, stage results beside, the whole fit on the fit part."""
     from hwid.identify.split import fit_pieces, held_out_pieces, plan
@@ -335,6 +348,7 @@ def _from_records(cfg, records, out: Path | None, echo, stage_results: bool) -> 
     base: dict = {"paths": {}}
     if stage_results:
         base.update(_recorded_stages(cfg, records, out, echo))
+    _input_moves(cfg, fit)
     t0 = time.perf_counter()
     fitter, how_borders = _whole_on_records(cfg, fit, echo)
     res, paths = _said(cfg, fitter, out, echo, t0)
