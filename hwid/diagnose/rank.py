@@ -27,6 +27,7 @@ from hwid.diagnose import search
 from hwid.diagnose.baseline import cancel_slow_pairs, mirror_rhp_zeros, split_modes
 from hwid.diagnose.gap import correlation_time, rms
 from hwid.diagnose.h_refit import HRefit
+from hwid.diagnose.intervals import param_intervals
 from hwid.diagnose.modelsim import ModelSim, ReblockedSim
 from hwid.diagnose.verdict import Candidate, bic_score, explained_fraction, rank
 from hwid.model import InputNonlinearity
@@ -394,7 +395,7 @@ class EffectFitter(HRefit):
                     tried.append((self.fit_criterion(cand, n), bigger, cand))
             tried = [t for t in tried if t[0] < self.fit_criterion(best, n)]
             if not tried:
-                return self._reading(eff, best, n)
+                return self._with_intervals(self._reading(eff, best, n))
             _, eff, best = min(tried, key=lambda t: t[0])
 
     def _reading(self, eff, best: Candidate, n: float) -> Candidate:
@@ -412,6 +413,19 @@ class EffectFitter(HRefit):
             if self.fit_criterion(c, n) - self.fit_criterion(best, n) < SAME_FIT and c.gap_after < best.gap_after:
                 best = c
         return best
+
+    def _with_intervals(self, c: Candidate) -> Candidate:
+        """``c`` with its own parameters' 95 % intervals (:func:`param_intervals`; F's, G's marginalised)."""
+        eff = c.fitted
+        lo, hi = eff.bounds(self.scale)
+        logs = tuple(eff.log_params())
+        if self.refit_g:
+            glo, ghi = self._g_bounds()
+            lo, hi, logs = np.r_[lo, glo], np.r_[hi, ghi], logs + (False,) * self.n_g
+        c.intervals = param_intervals(lambda th: self._residual(eff, th), c.theta, lo, hi, logs, eff.params,
+                                      kappa_min=self.kappa / self.stride,
+                                      step=self.COARSE_STEP if eff.kinked else self.FINE_STEP)
+        return c
 
     @property
     def n_eff_fit(self) -> float:
