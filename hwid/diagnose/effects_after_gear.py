@@ -85,18 +85,30 @@ class Friction(Effect):
     def log_params(self):
         return (False, True, False)
 
+    #: the largest Coulomb level, in multiples of the gear output's range (:meth:`bounds`)
+    COULOMB_RANGES = 10.0
+
     def bounds(self, sc: Scale):
-        """The Coulomb level up to half the gear's output range either way; the pre-sliding
-        displacement from 1e-4 of that range (a Coulomb step within a sample of travel) to half of
-        it; the viscous term up to the displacement's own at G's bandwidth."""
+        """The Coulomb level up to :attr:`COULOMB_RANGES` times the gear output's range either way;
+        the pre-sliding displacement from 1e-4 of that range (a Coulomb step within a sample of
+        travel) to half of it; the viscous term up to the displacement's own at G's bandwidth.
+
+        In ``v``'s units the Coulomb level is the friction force over the drive's elastic stiffness
+        ``k``. Where the output is a position, more than the range would keep the load from moving
+        at all; where it is a force read at the driven shaft, the force may be nearly all friction
+        (a friction damper: ``k`` small), and the level then exceeds the range by as much as the
+        friction force exceeds the elastic one (h re-estimated takes the scale back). A banded
+        friction damper's log pressed a bound of half the range (its Coulomb level there 1.01, the
+        range 2.0) and was fitted at 3.2 within ten."""
         W = sc.v_width
         b = 1.0 / sc.omega_c if np.isfinite(sc.omega_c) and sc.omega_c > 0 else sc.settle_s
-        return np.array([-0.5 * W, 1e-4 * W, -b]), np.array([0.5 * W, 0.5 * W, b])
+        c = self.COULOMB_RANGES * W
+        return np.array([-c, 1e-4 * W, -b]), np.array([c, 0.5 * W, b])
 
     def starts(self, sc: Scale):
         lo, hi = self.bounds(sc)
         W = sc.v_width
-        return grid([-0.2 * W, -0.05 * W, -0.01 * W, 0.01 * W, 0.05 * W, 0.2 * W],
+        return grid([f * W for f in (-4.0, -1.0, -0.2, -0.05, -0.01, 0.01, 0.05, 0.2, 1.0, 4.0)],
                     np.geomspace(lo[1], 0.25 * hi[1], 4), [0.0])
 
     def drive(self, v, theta, dt: float) -> np.ndarray:
