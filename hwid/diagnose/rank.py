@@ -417,8 +417,7 @@ class EffectFitter(HRefit):
     def _with_intervals(self, c: Candidate) -> Candidate:
         """``c`` with its own parameters' 95 % intervals (:func:`param_intervals`; F's, G's marginalised)."""
         eff = c.fitted
-        lo, hi = eff.bounds(self.scale)
-        logs = tuple(eff.log_params())
+        (lo, hi), logs = eff.bounds(self.scale), tuple(eff.log_params())
         if self.refit_g:
             glo, ghi = self._g_bounds()
             lo, hi, logs = np.r_[lo, glo], np.r_[hi, ghi], logs + (False,) * self.n_g
@@ -615,19 +614,20 @@ class EffectFitter(HRefit):
         (eff, theta))``, the last for :meth:`predict_on`; ``(inf, None, (None, None))`` where there
         is none.
 
-        A candidate's model without its effect: F and G as its joint fit left them (the baseline's
-        for the baseline), h re-estimated on the fit data, and for an effect of the input, the input
-        run through the same path with the actuator left as it is (an input effect's path
-        re-estimates the gear's start where a record leaves it open,
-        :meth:`hwid.diagnose.modelsim.ModelSim.gear_start`, and the baseline's does not). None where
-        G was not re-estimated with the effect, or the candidate is a disturbance.
+        A candidate's model without its effect: F and G as its joint fit left them (the baseline's for
+        the baseline), h re-estimated on the fit data, and for an effect of the input, the input run
+        through the same path with the actuator left as it is (that path re-estimates the gear's start
+        where a record leaves it open, :meth:`hwid.diagnose.modelsim.ModelSim.gear_start`, the
+        baseline's does not). None where G was not re-estimated with the effect, or for a disturbance.
 
         An effect is credited only with what it adds to the model it was fitted with: a dead zone
         fitted at zero width on a plain rig's lab log beat the refit baseline by 1 % (a likelihood
         ratio of 29) through that path and its joint fit of F and G alone."""
         best = (float("inf"), None, (None, None))
         for c in ([None] if baseline else []) + list(cands):
-            spec = self.effect_free_spec(c)
+            # a joint fit whose effect predicts validation worse than the refit followed the fit part's
+            # misfit: its G is no model's (an output hysteresis's, on an input clip, failed the clip on a ramp)
+            spec = self.effect_free_spec(c) if c is None or c.gap_after < self.gap_ref else None
             if spec is None:
                 continue
             xs = self._refit_predict(*spec, "val")
