@@ -8,6 +8,7 @@ plant as an hwid model. ``function(u, dt) -> y`` as ``plant.kind: external`` exp
 """
 from __future__ import annotations
 
+import math
 import zlib
 
 import numpy as np
@@ -400,3 +401,76 @@ def clip_between_lags(u, dt):
         x2 = a2 * x2 + (1 - a2) * 2.0 * c
     r.lags = (x1, x2)
     return 0.25 * w - 0.42 * w ** 3 + 0.2 * w ** 5 + r.noise(u.size)
+
+
+# ------------------------------------------------------------------ effects after the gear (issue 48)
+
+TRUTH["friction"] = {"coulomb": -0.12, "pre_sliding": 0.05, "viscous": 0.0}
+TRUTH["friction_damper"] = {"coulomb": 0.15, "pre_sliding": 0.03, "viscous": 0.1}
+TRUTH["output_hysteresis"] = {"width": 0.2, "weight": 0.7}
+
+
+def _zoh(dt, num=(2.0,), den=(1.0, 3.0, 2.0)):
+    b, a, _ = signal.cont2discrete((list(num), list(den)), dt, method="zoh")[:3]
+    return np.ravel(b), a
+
+
+def _friction_rig(name: str, u, dt):
+    """The base plant with a Dahl friction force on the gear's output side: G is driven by
+    ``v + coulomb z + viscous dv/dt``, ``dz/dv = (1 - z sgn dv) / pre_sliding`` (solved exactly over
+    each sample's move), the gear, the friction state and G's state carried over between calls."""
+    t = TRUTH[name]
+    r = _rig(name)
+    u = np.asarray(u, float)
+    v = r.gear_out(u, 0.3)
+    z = getattr(r, "z", 0.0)
+    prev = getattr(r, "v_last", v[0])
+    drive = np.empty_like(v)
+    for k, vk in enumerate(v):
+        dv = vk - prev
+        if dv != 0.0:
+            s = 1.0 if dv > 0 else -1.0
+            z = s + (z - s) * math.exp(-abs(dv) / t["pre_sliding"])
+        drive[k] = vk + t["coulomb"] * z + t["viscous"] * dv / dt
+        prev = vk
+    r.z, r.v_last = z, prev
+    b, a = _zoh(dt)
+    zi = getattr(r, "zi", None)
+    if zi is None:
+        zi = signal.lfiltic(b, a, y=[drive[0]] * (len(a) - 1), x=[drive[0]] * (len(b) - 1))
+    w, r.zi = signal.lfilter(b, a, drive, zi=zi)
+    return w - 0.1 * w ** 3 + r.noise(u.size)
+
+
+def friction(u, dt):
+    """Friction holding the load back (a position behind a compliant drive): ``coulomb < 0``."""
+    return _friction_rig("friction", u, dt)
+
+
+def friction_damper(u, dt):
+    """Friction adding to the output in the direction of motion (a force at the driven shaft), with
+    a viscous part."""
+    return _friction_rig("friction_damper", u, dt)
+
+
+def output_hysteresis(u, dt):
+    """The base plant with a rate-independent hysteresis between G and h: four plays of
+    half-widths ``width k / 4`` averaged, mixed with ``weight``; plays and G carried over."""
+    t = TRUTH["output_hysteresis"]
+    r = _rig("output_hysteresis")
+    u = np.asarray(u, float)
+    v = r.gear_out(u, 0.3)
+    b, a = _zoh(dt)
+    zi = getattr(r, "zi", None)
+    if zi is None:
+        zi = signal.lfiltic(b, a, y=[v[0]] * (len(a) - 1), x=[v[0]] * (len(b) - 1))
+    w, r.zi = signal.lfilter(b, a, v, zi=zi)
+    plays = getattr(r, "plays", None) or [float(w[0])] * 4
+    out = np.empty_like(w)
+    for k, wk in enumerate(w):
+        for j in range(4):
+            half = t["width"] * (j + 1) / 4
+            plays[j] = min(max(plays[j], wk - half), wk + half)
+        out[k] = (1 - t["weight"]) * wk + t["weight"] * sum(plays) / 4
+    r.plays = plays
+    return out - 0.1 * out ** 3 + r.noise(u.size)

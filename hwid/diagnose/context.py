@@ -84,16 +84,18 @@ def drift_additivity(pairs, design, sigma: float) -> dict:
 
 
 def scale_of(design, exps, sim_fit, sim_val, records) -> Scale:
-    """The sizes the effects' bounds and starts are scaled from: input, model output and gear ranges,
+    """The sizes the effects' bounds and starts are scaled from: input, model output, gear and G ranges,
     the settling time and bandwidth, the longest experiment, the measured output's range."""
     us = np.concatenate([e.u for e in exps])
     uf = np.concatenate(list(sim_fit.inputs))
     xs = np.concatenate(list(sim_fit.x) + list(sim_val.x))
     vs = np.concatenate(list(sim_fit.v) + list(sim_val.v))
+    ws = np.concatenate(list(sim_fit.w) + list(sim_val.w))
     ys = np.concatenate([np.asarray(r.y, float)[e.mask] for e, r in zip(exps, records)]) if records else xs
     return Scale(design.dt, float(us.min()), float(us.max()), float(xs.min()), float(xs.max()),
                  float(np.max(np.abs(vs))), design.settle_s, design.omega_c, float(max(e.n for e in exps) * design.dt),
-                 float(ys.min()), float(ys.max()), float(uf.min()), float(uf.max()))
+                 float(ys.min()), float(ys.max()), float(uf.min()), float(uf.max()),
+                 float(vs.min()), float(vs.max()), float(ws.min()), float(ws.max()))
 
 
 def sine_band(cfg):

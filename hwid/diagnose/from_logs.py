@@ -16,7 +16,7 @@ from hwid.diagnose.conclude import conclude
 from hwid.diagnose.context import Context, Validation, drift_additivity, scale_of
 from hwid.diagnose.effects import catalogue
 from hwid.diagnose.modelsim import ModelSim
-from hwid.diagnose.next_experiment import propose
+from hwid.diagnose.next_experiment import AFTER_GEAR, propose, propose_against_play
 from hwid.diagnose.sim_side import load_model
 from hwid.identify.split import plan
 from hwid.recorded import load_records
@@ -119,6 +119,7 @@ def _extra(ctx: Context, data: dict):
         lead = groups[0] if groups else None
         name = summary["verdict"]["effect"]
         if lead is None or name not in lead["effects"]:
+            _against_play(fitter, cands, name, summary)
             return
         members = [next(c for c in cands if c.effect == e) for e in lead["effects"]]
         members = [c for c in members if c.theta is not None]
@@ -126,6 +127,17 @@ def _extra(ctx: Context, data: dict):
             summary["next_experiment"] = propose(fitter, members, available, ctx.val.design, ctx.floor.sigma,
                                                  ctx.floor.kappa)
             ctx.echo(f"next experiment: {summary['next_experiment']['why']}")
+
+    def _against_play(fitter, cands, name, summary):
+        """A friction or an output hysteresis named, or the best candidate of an ``unexplained``
+        verdict: the experiment that tells it from the model's own play (:func:`propose_against_play`)."""
+        top = next((c for c in cands if c.effect == name), None) if name in AFTER_GEAR else (
+            cands[0] if name == "unexplained" and cands and cands[0].effect in AFTER_GEAR
+            and cands[0].explained_fraction > 0 else None)
+        prop = propose_against_play(fitter, top, ctx.val.design, ctx.floor.sigma, ctx.floor.kappa) if top else None
+        if prop is not None:
+            summary["next_experiment"] = prop
+            ctx.echo(f"next experiment: {prop['why']}")
 
     return extra
 

@@ -27,6 +27,7 @@ from hwid.diagnose import search
 from hwid.diagnose.baseline import cancel_slow_pairs, mirror_rhp_zeros, split_modes
 from hwid.diagnose.gap import correlation_time, rms
 from hwid.diagnose.h_refit import HRefit
+from hwid.diagnose.intervals import param_intervals
 from hwid.diagnose.modelsim import ModelSim, ReblockedSim
 from hwid.diagnose.verdict import Candidate, bic_score, explained_fraction, rank
 from hwid.model import InputNonlinearity
@@ -394,7 +395,7 @@ class EffectFitter(HRefit):
                     tried.append((self.fit_criterion(cand, n), bigger, cand))
             tried = [t for t in tried if t[0] < self.fit_criterion(best, n)]
             if not tried:
-                return self._reading(eff, best, n)
+                return self._with_intervals(self._reading(eff, best, n))
             _, eff, best = min(tried, key=lambda t: t[0])
 
     def _reading(self, eff, best: Candidate, n: float) -> Candidate:
@@ -412,6 +413,18 @@ class EffectFitter(HRefit):
             if self.fit_criterion(c, n) - self.fit_criterion(best, n) < SAME_FIT and c.gap_after < best.gap_after:
                 best = c
         return best
+
+    def _with_intervals(self, c: Candidate) -> Candidate:
+        """``c`` with its own parameters' 95 % intervals (:func:`param_intervals`; F's, G's marginalised)."""
+        eff = c.fitted
+        (lo, hi), logs = eff.bounds(self.scale), tuple(eff.log_params())
+        if self.refit_g:
+            glo, ghi = self._g_bounds()
+            lo, hi, logs = np.r_[lo, glo], np.r_[hi, ghi], logs + (False,) * self.n_g
+        c.intervals = param_intervals(lambda th: self._residual(eff, th), c.theta, lo, hi, logs, eff.params,
+                                      kappa_min=self.kappa / self.stride,
+                                      step=self.COARSE_STEP if eff.kinked else self.FINE_STEP)
+        return c
 
     @property
     def n_eff_fit(self) -> float:
@@ -601,19 +614,20 @@ class EffectFitter(HRefit):
         (eff, theta))``, the last for :meth:`predict_on`; ``(inf, None, (None, None))`` where there
         is none.
 
-        A candidate's model without its effect: F and G as its joint fit left them (the baseline's
-        for the baseline), h re-estimated on the fit data, and for an effect of the input, the input
-        run through the same path with the actuator left as it is (an input effect's path
-        re-estimates the gear's start where a record leaves it open,
-        :meth:`hwid.diagnose.modelsim.ModelSim.gear_start`, and the baseline's does not). None where
-        G was not re-estimated with the effect, or the candidate is a disturbance.
+        A candidate's model without its effect: F and G as its joint fit left them (the baseline's for
+        the baseline), h re-estimated on the fit data, and for an effect of the input, the input run
+        through the same path with the actuator left as it is (that path re-estimates the gear's start
+        where a record leaves it open, :meth:`hwid.diagnose.modelsim.ModelSim.gear_start`, the
+        baseline's does not). None where G was not re-estimated with the effect, or for a disturbance.
 
         An effect is credited only with what it adds to the model it was fitted with: a dead zone
         fitted at zero width on a plain rig's lab log beat the refit baseline by 1 % (a likelihood
         ratio of 29) through that path and its joint fit of F and G alone."""
         best = (float("inf"), None, (None, None))
         for c in ([None] if baseline else []) + list(cands):
-            spec = self.effect_free_spec(c)
+            # a joint fit whose effect predicts validation worse than the refit followed the fit part's
+            # misfit: its G is no model's (an output hysteresis's, on an input clip, failed the clip on a ramp)
+            spec = self.effect_free_spec(c) if c is None or c.gap_after < self.gap_ref else None
             if spec is None:
                 continue
             xs = self._refit_predict(*spec, "val")

@@ -30,6 +30,7 @@ class Candidate:
     theta: np.ndarray | None = field(default=None, repr=False)   # the fit's parameters (effect's, then F's and G's)
     fitted: object = field(default=None, repr=False)   # the Effect theta belongs to (a family at its chosen degree)
     stripped: bool = False     # fitted on the baseline with the identified G's outside modes taken out
+    intervals: dict | None = None   # 95 % intervals of ``params`` (:mod:`hwid.diagnose.intervals`)
 
     def to_dict(self) -> dict:
         d = {"effect": self.effect, "params": self.params, "gap_after": self.gap_after,
@@ -38,6 +39,8 @@ class Candidate:
              "per_experiment": self.per_experiment, "at_bound": self.at_bound}
         if self.model is not None:
             d["model"] = self.model
+        if self.intervals is not None:
+            d["intervals"] = self.intervals
         return d
 
 
