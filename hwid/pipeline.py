@@ -46,8 +46,9 @@ def run(cfg, out_dir: str | Path, report: bool = True, echo=print) -> dict:
     write_json(out / IDENTIFICATION_JSON, ident.to_dict())
     paths["identification"] = out / IDENTIFICATION_JSON
     if ident.adequacy is not None and ident.adequacy.verdict != "adequate":
-        echo(f"{ident.adequacy.verdict.upper()}: the model's estimates above are not to be trusted as they stand "
-             f"({ident.adequacy.reason})")
+        what = ("the model misses its records by more than the noise allows; its estimates above carry that "
+                "misfit" if ident.adequacy.verdict == "misfit" else "the data cannot judge the model")
+        echo(f"{ident.adequacy.verdict.upper()}: {what} ({ident.adequacy.reason})")
     if report:
         from hwid.report.html import write_report
         t0 = time.perf_counter()

@@ -586,6 +586,7 @@ def test_input_clip_on_the_paper_plant_found_by_the_profile_scan(tmp_path):
 
 
 
+@pytest.mark.slow      # a long end-to-end diagnosis (about a minute on 2 cores); make test-slow, CI
 def test_a_clip_between_the_lags_of_g_is_unexplained_though_a_static_clip_matches_at_rest(tmp_path, monkeypatch):
     """The paper's plant with a clip at +-0.5 between G's two lags, the paper's plant as
     ``--model``. At rest a clip of the input does the same, and fitted so it takes the gap from

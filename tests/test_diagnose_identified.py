@@ -206,6 +206,7 @@ def test_a_stage_1_that_did_not_identify_f_never_drives_the_plant(tmp_path):
     assert unsafe_precompensator(cfg, stage1("backlash_inverse", 0.7, 0.25, -0.2)) == ""
 
 
+@pytest.mark.slow      # a long end-to-end diagnosis (about a minute on 2 cores); make test-slow, CI
 def test_a_stage_1_that_did_not_identify_f_gives_way_to_the_whole_fit(tmp_path_factory, monkeypatch):
     """The diagnosis of a slow actuator whose stage 1 came out as the judged seed's (a
     Backlash-Inverse of S^d = 5.18e21, put in place of the real estimate): the sines run without a pre-compensator, the model is fitted
@@ -222,6 +223,7 @@ def test_a_stage_1_that_did_not_identify_f_gives_way_to_the_whole_fit(tmp_path_f
     _slow_actuator_named(_run(tmp_path_factory, "rate_limit_slow_b"), "pre-compensator")
 
 
+@pytest.mark.slow      # a long end-to-end diagnosis (about a minute on 2 cores); make test-slow, CI
 def test_identified_slow_actuator_whose_position_carries_over(tmp_path_factory):
     """The issue's slow actuator (15 s to cross [-1, 1]) whose position carries over from call to
     call, identified: stage 2 reads no harmonic at most sines, the whole fit with the rate finds the

@@ -200,6 +200,7 @@ def test_a_slow_actuator_before_a_backlash_inverse_identified_from_the_log_alone
     assert params["carried"] < 0.1
 
 
+@pytest.mark.slow      # a long end-to-end diagnosis (about a minute on 2 cores); make test-slow, CI
 def test_a_mode_the_whole_fit_puts_into_g_is_named_a_resonance(tmp_path):
     """G with a lightly damped pair (5 rad/s, zeta 0.1) that the whole fit from the log takes into
     its G: no sine band fixed G, so the pair is the resonance effect's to earn back, and it does,
@@ -239,6 +240,7 @@ def test_a_delay_the_whole_fit_takes_into_g_is_named_a_time_delay(tmp_path):
     assert level["records"] == "fit and validation" and abs(level["z"]) < level["bound"]
 
 
+@pytest.mark.slow      # a long end-to-end diagnosis (about a minute on 2 cores); make test-slow, CI
 def test_a_g_beyond_the_whole_fits_structures_is_no_false_alarm(tmp_path):
     """A plain rig whose G (three poles and a zero) none of the whole fit's structures holds: the
     fit's delay stood in for the missing pole, and taken out of the baseline it left a gap that
@@ -496,6 +498,7 @@ _REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 
 
 @pytest.mark.skipif(not (_REAL / "brfd").is_dir(), reason="the real damper data (../shared/data/real/brfd) are not here")
+@pytest.mark.slow      # a long end-to-end diagnosis (about a minute on 2 cores); make test-slow, CI
 def test_the_real_friction_damper_is_named_friction(tmp_path):
     """The banded rotary friction damper's 1 Hz log with the model hwid identifies from it: a
     friction is not a gear with play, and of the catalogue the Dahl friction on the gear's output
