@@ -291,7 +291,7 @@ class HistoryFit:
         n_settled = sum(lv.scored for lv in levels)
         if n_settled < 4:
             raise HwidError(f"stage 1 from a recorded history needs at least 4 settled levels; found {n_settled} "
-                            "(for records without held levels, fit the whole model: identification.whole.enabled: true)")
+                            "(for records without held levels, `hwid run` fits the whole model)")
         names = list(dict.fromkeys(lv.record for lv in levels))
         u = np.array([lv.u for lv in levels if lv.scored])
         width = float(np.ptp(u)) or 1.0
@@ -301,7 +301,7 @@ class HistoryFit:
                             f"{len(des.up)} distinct level(s) approached from below ({determinable.describe(des.up)}) "
                             f"and {len(des.down)} from above ({determinable.describe(des.down)}); hold at least 2 "
                             "distinct levels above d+ approached from below and 2 below d- approached from above "
-                            "(or fit the whole model: identification.whole.enabled: true)")
+                            "(or let `hwid run` fit the whole model)")
         table, best = [], None
         for kind in self.types:
             for degree in range(1, min(self.max_degree, des.max_degree()) + 1):
