@@ -22,11 +22,13 @@ class HwidError(ValueError):
 
 
 def __getattr__(name: str):
+    """The API's names on first use (PEP 562). Imported by name, at the first access after ``hwid``
+    itself is complete: the package's modules import :class:`HwidError` from here, and the API
+    imports them, so a static import of the API here would close that loop."""
+    import importlib
     if name in _API:
-        from hwid import api
-        return getattr(api, name)
+        return getattr(importlib.import_module("hwid.api"), name)
     if name in _MODULES:
-        import importlib
         return importlib.import_module(f"hwid.{name}")
     raise AttributeError(f"module 'hwid' has no attribute {name!r}")
 

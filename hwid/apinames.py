@@ -8,6 +8,7 @@ separate objects: the module is made callable, and a call is the API function's.
 """
 from __future__ import annotations
 
+import importlib
 import sys
 import types
 
@@ -17,7 +18,8 @@ def callable_as(module_name: str, api_name: str) -> None:
 
     class _Module(types.ModuleType):
         def __call__(self, *args, **kwargs):
-            from hwid import api
+            # by name, at call time: hwid.api imports the modules made callable here
+            api = importlib.import_module("hwid.api")
             return getattr(api, api_name)(*args, **kwargs)
 
     _Module.__call__.__doc__ = f"A call is :func:`hwid.api.{api_name}`."
