@@ -195,10 +195,12 @@ class Data:
 
     @property
     def records(self) -> tuple:
+        """The experiments as :class:`hwid.plant.Record` (what every command works on)."""
         return self._records
 
     @property
     def dt(self) -> float:
+        """The sample time in seconds."""
         return self._dt
 
     @property
