@@ -165,14 +165,22 @@ def test_hwid_identify_is_the_package_and_the_function():
     assert "identify" in out.stdout and "Data" in out.stdout
 
 
+#: the guide's Python blocks: the ten-line example (also the README's), arrays, defaults, a log on disk
+TEN_LINES, ARRAYS, DEFAULTS, LOG = range(4)
+
+
+def _python_blocks(path: Path) -> list[str]:
+    return re.findall(r"```python\n(.*?)```", path.read_text(encoding="utf-8"), flags=re.S)
+
+
 def _guide_blocks() -> list[str]:
-    return re.findall(r"```python\n(.*?)```", GUIDE.read_text(encoding="utf-8"), flags=re.S)
+    return _python_blocks(GUIDE)
 
 
 def test_guide_example_runs(capsys):
-    """The guide's first example (the README's) runs and says what its comments say."""
+    """The guide's example on arrays runs and says what its comments say."""
     namespace: dict = {}
-    exec(compile(_guide_blocks()[0], str(GUIDE), "exec"), namespace)
+    exec(compile(_guide_blocks()[ARRAYS], str(GUIDE), "exec"), namespace)
     model, truth = namespace["model"], namespace["truth"]
     lo, hi = model.intervals["d_plus"]
     assert lo <= truth.input.d_plus <= hi
@@ -190,12 +198,12 @@ def test_guide_log_example_runs(tmp_path, monkeypatch):
     intervals, and the saved run loads back."""
     blocks = _guide_blocks()
     namespace: dict = {}
-    exec(compile(blocks[0], str(GUIDE), "exec"), namespace)
+    exec(compile(blocks[ARRAYS], str(GUIDE), "exec"), namespace)
     u, y = namespace["u"], namespace["y"]
     t = np.arange(u.size) * 0.02
     (tmp_path / "servo.csv").write_text("t,cmd,pos\n" + "\n".join(f"{a:.6f},{b:.9g},{c:.9g}" for a, b, c in zip(t, u, y)))
     monkeypatch.chdir(tmp_path)
-    exec(compile(blocks[2], str(GUIDE), "exec"), namespace)
+    exec(compile(blocks[LOG], str(GUIDE), "exec"), namespace)
     model, same = namespace["model"], namespace["same"]
     assert model.model.input.type == "backlash" and len(model.model.linear.den) == 2
     assert len(model.model.output.coefficients) == 3
@@ -206,7 +214,6 @@ def test_guide_log_example_runs(tmp_path, monkeypatch):
     assert np.max(np.abs(same.simulate(u, 0.02) - model.simulate(u, 0.02))) <= 1e-12
 
 
-@pytest.mark.slow
 def test_diagnose_a_plain_log_is_no_false_alarm(tmp_path):
     """hwid.diagnose on a lab's log of a plant without any effect (tests/logs.py), the sim side a
     Model loaded from the rig's own YAML: no effect is named, the gap is the noise, and the dict is
@@ -218,3 +225,38 @@ def test_diagnose_a_plain_log_is_no_false_alarm(tmp_path):
     assert s["verdict"]["effect"] == "none"
     assert s["gap_before"] <= 1.1 * s["noise_floor"]
     assert json.loads((tmp_path / "out" / "diagnosis.json").read_text()) == json.loads(json.dumps(s))
+
+
+def _ten_lines(path: Path, block: str, monkeypatch) -> dict:
+    """Run a ten-line example from the repository's root: the truth's borders (``truth``, a
+    :class:`hwid.Model`, normalised) lie within the identified model's intervals, and it is adequate."""
+    monkeypatch.chdir(Path(__file__).parents[1])
+    namespace: dict = {}
+    exec(compile(block, str(path), "exec"), namespace)
+    model, truth = namespace["model"], namespace["truth"].model.normalised().input
+    assert model.model.input.type == truth.type
+    for name in ("d_plus", "d_minus"):
+        lo, hi = model.intervals[name]
+        assert lo <= getattr(truth, name) <= hi, (name, lo, hi)
+    assert model.adequacy.verdict == "adequate", model.adequacy.reason
+    return namespace
+
+
+@pytest.mark.slow
+def test_guide_ten_lines_run(capsys, monkeypatch):
+    """The guide's ten-line example (the paper's plant identified from 12000 samples, ~90 s) gives
+    what the page says: d+ within its interval of 0.5, adequate, the RMS of the noise 0.01."""
+    _ten_lines(GUIDE, _guide_blocks()[TEN_LINES], monkeypatch)
+    printed = capsys.readouterr().out.strip().split("\n")
+    assert printed[1].endswith("adequate")
+    assert abs(float(printed[2]) - 0.01) < 0.001
+
+
+@pytest.mark.slow
+def test_readme_python_example_runs(monkeypatch):
+    """The README's Python example, where it has one, runs: its truth within the intervals, adequate."""
+    readme = Path(__file__).parents[1] / "README.md"
+    blocks = [b for b in _python_blocks(readme) if "hwid.identify" in b]
+    if not blocks:
+        pytest.skip("README.md has no Python example calling hwid.identify")
+    _ten_lines(readme, blocks[0], monkeypatch)
