@@ -272,13 +272,23 @@ class Model:
 
     @property
     def intervals(self) -> dict:
-        """The 95 % intervals of the whole fit's parameters (``d_plus``, ``d_minus``, ``slope_down``,
-        ``h_coefficients``), empty where the model did not come from one."""
-        whole = getattr(self.identification, "whole", None)
-        if whole is None:
+        """The 95 % intervals of F's and h's parameters (``d_plus``, ``d_minus``, ``slope_down``,
+        ``h_coefficients``): the whole fit's for the route ``whole``, stage 1's (Section 4) for the
+        route ``stages``; empty for a loaded model. A parameter the data cannot determine has no
+        entry or None."""
+        ident = self.identification
+        source = None
+        if ident is not None and ident.route == "whole" and ident.whole is not None:
+            source = ident.whole.ci
+        elif ident is not None and ident.route == "stages" and ident.nonlinear is not None:
+            source = ident.nonlinear.ci
+        if source is None:
             return {}
-        return {k: [tuple(float(x) for x in p) for p in v] if k == "h_coefficients" else tuple(float(x) for x in v)
-                for k, v in whole.ci.items()}
+
+        def plain(v):
+            return None if v is None else tuple(float(x) for x in v)
+        return {k: [plain(p) for p in v] if k == "h_coefficients" else plain(v) for k, v in source.items()
+                if k in ("d_plus", "d_minus", "slope_down", "h_coefficients")}
 
     def simulate(self, u, dt: float) -> np.ndarray:
         """The model's output ``y = h(G * F[u])`` (eqs. 3a-c, without noise) on the input ``u``

@@ -97,6 +97,26 @@ def test_save_and_load_reproduce_the_model(identified, tmp_path):
     assert load_model(str(out), echo=lambda *a: None)[0].to_dict() == model.model.to_dict()
 
 
+def test_identify_a_config_by_the_stages(tmp_path):
+    """A config's simulated plant identified as ``hwid run`` does (the small rig: staircases and
+    sines, the stages' route): stage 1's intervals hold the truth's borders, the model is adequate,
+    and its saved run directory (nonlinear.h5, linear.h5) loads back to the same simulation."""
+    import rigs
+    from hwid import config
+    from hwid.model import from_config
+    path = rigs.write(tmp_path / "small.yaml", rigs.small())
+    model = hwid.identify(path)
+    assert model.route == "stages" and model.adequacy.verdict == "adequate"
+    truth = from_config(config.load(path).plant).normalised().input
+    for name in ("d_plus", "d_minus"):
+        lo, hi = model.intervals[name]
+        assert lo <= getattr(truth, name) <= hi, name
+    out = model.save(tmp_path / "run")
+    assert (out / "nonlinear.h5").is_file() and (out / "linear.h5").is_file()
+    u = np.repeat(np.linspace(-1.0, 1.0, 7), 50)
+    assert np.max(np.abs(hwid.Model.load(out).simulate(u, 0.05) - model.simulate(u, 0.05))) <= 1e-12
+
+
 def test_load_a_plant_yaml(tmp_path):
     """A plant YAML loads to the config's own model."""
     from hwid.model import from_config
