@@ -176,6 +176,20 @@ class Data:
         -------
         Data
             One record per stretch of the file (a gap splits it), each with its provenance.
+
+        Examples
+        --------
+        A CSV log with a time column in seconds; a pause of the logger (a gap longer than three
+        sample times) splits it in two records:
+
+        >>> import tempfile, pathlib, numpy as np, hwid
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> t = np.r_[np.arange(100), np.arange(200, 300)] * 0.01
+        >>> rows = "\\n".join(f"{a:.2f},{np.sin(a):.6f},{np.cos(a):.6f}" for a in t)
+        >>> _ = (folder / "log.csv").write_text("t,cmd,pos\\n" + rows)
+        >>> data = hwid.Data.from_file(folder / "log.csv", input="cmd", output="pos", time="t")
+        >>> data.dt, [r.name for r in data.records], [r.u.size for r in data.records]
+        (0.01, ['log_part1', 'log_part2'], [100, 100])
         """
         unknown = sorted(set(options) - set(FILE_OPTIONS))
         if unknown:
@@ -352,7 +366,22 @@ class Model:
         """The model of a run directory (``hwid run`` or :meth:`save`) or of a plant YAML (``kind:
         hammerstein_wiener``), read as ``hwid compare`` reads its MODEL
         (:func:`hwid.diagnose.sim_side.load_model`); a run directory's adequacy comes back from its
-        ``identification.json``."""
+        ``identification.json``.
+
+        Examples
+        --------
+        >>> import tempfile, pathlib, hwid
+        >>> plant = pathlib.Path(tempfile.mkdtemp()) / "plant.yaml"
+        >>> _ = plant.write_text('''
+        ... kind: hammerstein_wiener
+        ... input_nonlinearity: {type: backlash, slope_up: 1.0, slope_down: 1.0, d_plus: 0.5, d_minus: -0.5}
+        ... linear: {num: [2.0], den: [1.0, 1.0]}
+        ... output_nonlinearity: {polynomial: [0, 1.0]}
+        ... ''')
+        >>> model = hwid.Model.load(plant)
+        >>> model.route, float(model.simulate([0.0] * 10 + [1.5] * 2000, dt=0.01)[-1].round(4))
+        ('loaded', 2.0)
+        """
         from hwid.diagnose.sim_side import load_model
         model, info = load_model(str(path), echo=_quiet)
         route, why, adequacy = "loaded", f"read from {path}", None
@@ -436,6 +465,13 @@ def identify(data, *, echo=None, **options) -> Model:
     True
     >>> model.adequacy.verdict                          # its residual is the noise: 0.01
     'adequate'
+
+    Saved as a run directory and read back, it simulates the same output:
+
+    >>> import tempfile
+    >>> folder = model.save(tempfile.mkdtemp())
+    >>> bool(np.array_equal(hwid.Model.load(folder).simulate(u, 0.02), model.simulate(u, 0.02)))
+    True
     """
     from hwid.identify.path import identify as identify_path
     echo = echo or _quiet
