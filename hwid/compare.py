@@ -189,3 +189,9 @@ def compare(model_spec, cfg, out_dir, json_path=None, echo=print) -> CompareResu
         echo(f"noise floor {floor.sigma:.4g} ({floor.source}: {floor.reason})")
         echo(f"adequacy: {result.adequacy.verdict}: {result.adequacy.reason}")
     return result
+
+
+# the module is also the API's hwid.compare(model, data) (hwid.apinames)
+from hwid.apinames import callable_as  # noqa: E402
+
+callable_as(__name__, "compare")

@@ -333,15 +333,22 @@ def load_experiment(exp, index: int, base: Path, dt: float, resolution: float | 
     for k, (tk, uk, yk) in enumerate(pieces):
         u_grid, y_grid = resample(tk, uk, yk, dt)
         name = stem if len(pieces) == 1 else f"{stem}_part{k + 1}"
-        attrs = {**provenance, "piece": k, "piece_start_s": float(tk[0])}
-        segments = level_segments(u_grid) if exp.role in ("auto", "staircase") else []
-        held = sum(seg["stop"] - seg["start"] for seg in segments)
-        if exp.role == "sine" or (exp.role == "auto" and held < 0.5 * u_grid.size):
-            segments += periodic_segments(u_grid, dt)
-        if exp.role in ("auto", "staircase", "sine"):
-            attrs["segments"] = json.dumps(segments)
+        attrs = {**provenance, "piece": k, "piece_start_s": float(tk[0]), **segment_attrs(u_grid, dt, exp.role)}
         records.append(Record(name, dt, u_grid, y_grid, attrs=attrs))
     return records
+
+
+def segment_attrs(u: np.ndarray, dt: float, role: str = "auto") -> dict:
+    """The ``segments`` attribute of a record of input ``u`` on the ``dt`` grid in ``role``: its
+    levels (``auto``, ``staircase``) and, where levels hold less than half of it (``auto``) or
+    always (``sine``), its steady periodic stretches; empty for ``validation`` and ``other``."""
+    if role not in ("auto", "staircase", "sine"):
+        return {}
+    segments = level_segments(u) if role in ("auto", "staircase") else []
+    held = sum(seg["stop"] - seg["start"] for seg in segments)
+    if role == "sine" or (role == "auto" and held < 0.5 * u.size):
+        segments += periodic_segments(u, dt)
+    return {"segments": json.dumps(segments)}
 
 
 def _seconds(column: np.ndarray, path: Path, name) -> np.ndarray:

@@ -14,7 +14,11 @@ Steps (:func:`diagnose`, in :mod:`hwid.diagnose.run`):
    the validation experiments (:mod:`hwid.diagnose.rank`); rank; verdict (:mod:`hwid.diagnose.verdict`);
 4. say where the gap lies: per experiment, per region, frequencies, trend;
 5. write ``OUT/diagnosis.h5`` and the JSON summary (:class:`DiagnosisResult`).
+
+The package is also callable: ``hwid.diagnose(config, model, out_dir=...)`` is
+:func:`hwid.api.diagnose` (:mod:`hwid.apinames`).
 """
+from hwid.apinames import callable_as
 from hwid.diagnose.effects import BLOCK, CATALOGUE
 from hwid.diagnose.result import DiagnosisResult
 from hwid.diagnose.conclude import ID_MIN_RATIO
@@ -22,3 +26,5 @@ from hwid.diagnose.run import diagnose
 from hwid.diagnose.sim_side import load_model
 
 __all__ = ["diagnose", "DiagnosisResult", "load_model", "CATALOGUE", "BLOCK", "ID_MIN_RATIO"]
+
+callable_as(__name__, "diagnose")
