@@ -20,6 +20,18 @@ from hwid.model import Actuator, InputNonlinearity
 from hwid.threads import forked_map
 
 
+#: the bound of each record's initial-gear parameter in a fit with the input's slew rate (the gear
+#: at ``0.5 (1 + tanh(x / 2))`` of its band, :meth:`Problem._unpacked`; 30 without a rate): at 8
+#: the gear comes within 3.4e-4 of the band of its border, and the cost's slope in it is still
+#: 3.4e-4 of the band's. Further out the tanh is flat, and a descent that drives a gear there
+#: while F's borders are still far off stops short, the gear no longer following the borders: a
+#: test rig slewing at 0.06 units/s (bound 30) ended with a gear parameter at 21.9, G at its
+#: start's 0.44 rad/s for the truth's 2 and 0.0643 units/s at 1.9x the noise; bounded at 8, the
+#: same start reaches 0.0600 and the noise. Fits without a rate keep 30: bounded at 8 too, the
+#: real friction damper's log came out unexplained, not friction.
+GEAR_PLACE = 8.0
+
+
 @dataclass
 class Problem:
     """The data and the fixed choices of one fit (F type, G structure, h degree, delay or not)."""
@@ -185,9 +197,10 @@ class Problem:
             (lo_a, lo_b), (hi_a, hi_b) = self.clip_bounds()
             lo += [lo_a, hi_a]
             hi += [lo_b, hi_b]
+        gear = GEAR_PLACE if self.with_rate else 30.0
         for _ in self.records:
-            lo += [-30.0, -np.inf]
-            hi += [30.0, np.inf]
+            lo += [-gear, -np.inf]
+            hi += [gear, np.inf]
         return np.array(lo), np.array(hi)
 
     def residual(self, theta) -> np.ndarray:
