@@ -173,7 +173,7 @@ def _from_plant(cfg, plant, out: Path | None, echo) -> Identification:
         from hwid.results import write_linear
         paths["linear"] = write_linear(out / LINEAR, cfg, linear, lin_records)
     echo(f"stage 2: G(jw) at {len(linear.frequencies)} frequencies; G = "
-         f"{list(np.round(linear.parametric.get('num', []), 4))}/{list(np.round(linear.parametric.get('den', []), 4))}")
+         f"{_coefficients(linear.parametric.get('num', []))}/{_coefficients(linear.parametric.get('den', []))}")
     for w in linear.warnings:
         echo(f"warning: {w}")
     base = {**base, "linear": linear, "linear_records": tuple(lin_records)}
@@ -313,6 +313,11 @@ def _said(cfg, fitter, out, echo, t0: float, role: str = "model"):
     for w in res.warnings:
         echo(f"warning: {w}")
     return res, paths
+
+
+def _coefficients(c) -> str:
+    """A polynomial's coefficients as a plain list, four significant digits."""
+    return "[" + ", ".join(f"{float(x):.4g}" for x in np.atleast_1d(np.asarray(c, float))) + "]"
 
 
 # --------------------------------------------------------------------------- a recorded plant
