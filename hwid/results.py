@@ -151,7 +151,7 @@ def write_dict(group: h5py.Group, data: dict) -> None:
             group.attrs[key + "__json"] = True
 
 
-_H5_ERRORS = (OSError, KeyError, ValueError, TypeError, RuntimeError, AttributeError)
+_H5_ERRORS = (OSError, KeyError, ValueError, TypeError, RuntimeError, AttributeError, OverflowError)
 
 
 def read_dict(group: h5py.Group) -> dict:

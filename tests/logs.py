@@ -136,3 +136,17 @@ def write_model(tmp_path, linear: dict | None = None):
     path = tmp_path / "model.yaml"
     path.write_text(yaml.safe_dump(model, sort_keys=False))
     return path
+
+
+def write_log_csv(tmp_path, u, y, dt: float, whole_enabled: bool = True):
+    """``u`` and ``y`` written as ``log.csv`` (columns cmd, pos) with a plain recorded config
+    ``log.yaml`` beside it (a Backlash, G of order 1, h up to degree 3); the config's path."""
+    (tmp_path / "log.csv").write_text("cmd,pos\n" + "\n".join(f"{a:.9g},{b:.9g}" for a, b in zip(u, y)))
+    d = {"name": "log", "sampling": {"dt": dt},
+         "plant": {"kind": "recorded", "experiments": [{"file": "log.csv", "input": {"column": "cmd"},
+                                                        "output": {"column": "pos"}}]},
+         "identification": {"nonlinear": {"input_type": "backlash"},
+                            "whole": {"enabled": whole_enabled, "max_order": 1, "max_degree": 3,
+                                      "input_type": "backlash"}}}
+    (tmp_path / "log.yaml").write_text(yaml.safe_dump(d))
+    return tmp_path / "log.yaml"

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import yaml
 
+import logs
 import rigs
 from hwid import config
 from hwid.cli import main
@@ -167,13 +168,7 @@ def test_recorded_run_with_the_whole_fit_is_a_model_for_compare(tmp_path):
     rng = np.random.default_rng(12)
     u = _history(rng, n_levels=12, shortest=40, longest=80)
     y = truth.simulate(u, DT, gear=0.0).x + 0.01 * rng.standard_normal(u.size)
-    (tmp_path / "log.csv").write_text("cmd,pos\n" + "\n".join(f"{a:.9g},{b:.9g}" for a, b in zip(u, y)))
-    cfg = {"name": "log", "sampling": {"dt": DT},
-           "plant": {"kind": "recorded", "experiments": [{"file": "log.csv", "input": {"column": "cmd"},
-                                                          "output": {"column": "pos"}}]},
-           "identification": {"nonlinear": {"input_type": "backlash"},
-                              "whole": {"enabled": True, "max_order": 1, "max_degree": 3, "input_type": "backlash"}}}
-    (tmp_path / "log.yaml").write_text(yaml.safe_dump(cfg))
+    logs.write_log_csv(tmp_path, u, y, DT)
     for argv in (["run", str(tmp_path / "log.yaml"), "--out", str(tmp_path / "run")],
                  ["compare", str(tmp_path / "run"), str(tmp_path / "log.yaml"), "--out", str(tmp_path / "cmp"),
                   "--json", str(tmp_path / "cmp.json")]):

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import yaml
 
+import logs
 import rigs
 from hwid import config
 from hwid.model import Actuator, from_config
@@ -47,15 +48,7 @@ def _lab_config(tmp_path, whole_enabled: bool) -> config.Config:
     rng = np.random.default_rng(12)
     u = np.repeat(rng.uniform(-1.2, 1.2, 16), rng.integers(40, 80, 16))
     y = truth.simulate(u, DT, gear=0.0).x + 0.01 * rng.standard_normal(u.size)
-    (tmp_path / "log.csv").write_text("cmd,pos\n" + "\n".join(f"{a:.9g},{b:.9g}" for a, b in zip(u, y)))
-    d = {"name": "log", "sampling": {"dt": DT},
-         "plant": {"kind": "recorded", "experiments": [{"file": "log.csv", "input": {"column": "cmd"},
-                                                        "output": {"column": "pos"}}]},
-         "identification": {"nonlinear": {"input_type": "backlash"},
-                            "whole": {"enabled": whole_enabled, "max_order": 1, "max_degree": 3,
-                                      "input_type": "backlash"}}}
-    (tmp_path / "log.yaml").write_text(yaml.safe_dump(d))
-    return config.load(tmp_path / "log.yaml")
+    return config.load(logs.write_log_csv(tmp_path, u, y, DT, whole_enabled))
 
 
 def test_run_and_diagnose_identify_the_same_model_from_a_log(tmp_path):

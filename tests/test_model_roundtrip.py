@@ -4,27 +4,12 @@ records from the fit's own starts, reproduce the fit's prediction to 1e-12."""
 import numpy as np
 import pytest
 
-import rigs
-from hwid import config
 from hwid.blocks.slew import slewed
 from hwid.identify.whole import Structure, WholeModelFit
-from hwid.model import Actuator, from_config
+from hwid.model import Actuator
 from hwid.plant import Record
 from hwid.results import read_whole, write_whole
-
-
-def _plant():
-    cfg = config.loads(__import__("yaml").safe_dump(rigs.small()))
-    return cfg, from_config(cfg.plant)
-
-
-def _levels_with_ramps(rng, n_levels, hold, ramp, dt, lo=-1.2, hi=1.2):
-    u, current = [], 0.0
-    for _ in range(n_levels):
-        target = rng.uniform(lo, hi)
-        u += list(np.linspace(current, target, int(ramp / dt))) + [target] * int(hold / dt)
-        current = target
-    return np.array(u)
+from test_whole import _levels_with_ramps, _plant
 
 
 def _records(truth, rng, actuate, n_levels, hold, dt=0.05, sigma=0.01):

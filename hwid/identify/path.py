@@ -322,15 +322,15 @@ def _coefficients(c) -> str:
 
 # --------------------------------------------------------------------------- a recorded plant
 
-def _input_moves(cfg, records) -> None:
-    """:class:`hwid.HwidError` (one line) where the records' input does not move enough to identify
-    anything from: fewer than three distinct values (a play, G and h cannot be told apart from one
-    or two levels)."""
+def _input_moves(cfg, records, what: str = "the records' input") -> None:
+    """:class:`hwid.HwidError` (one line) where ``records``' input (``what``: which records, for the
+    message) does not move enough to identify anything from: fewer than three distinct values (a
+    play, G and h cannot be told apart from one or two levels)."""
     u = np.concatenate([np.asarray(r.u, float) for r in records])
     distinct = np.unique(u[np.isfinite(u)])
     if distinct.size < 3:
         held = ", ".join(f"{x:.4g}" for x in distinct[:2])
-        raise HwidError(f"{cfg.source_path}: the records' input takes only {distinct.size} value(s) ({held}): "
+        raise HwidError(f"{cfg.source_path}: {what} takes only {distinct.size} value(s) ({held}): "
                         "no model can be identified from it; record an input that moves across the play "
                         "(levels approached from both sides, or a sine)")
 
@@ -353,7 +353,7 @@ def _from_records(cfg, records, out: Path | None, echo, stage_results: bool) -> 
     base: dict = {"paths": {}}
     if stage_results:
         base.update(_recorded_stages(cfg, records, out, echo))
-    _input_moves(cfg, fit)
+    _input_moves(cfg, fit, "the fit part's input" if held else "the records' input")
     t0 = time.perf_counter()
     fitter, how_borders = _whole_on_records(cfg, fit, echo)
     res, paths = _said(cfg, fitter, out, echo, t0)
