@@ -41,8 +41,9 @@ MIN_BLOCK = 20
 SMOOTHER_WINDOW, SMOOTHER_ORDER = 21, 4
 #: a block whose variance exceeds the median block's by this tail probability is left out of the floor
 OUTLIER_P = 1e-3
-#: lags of the residual tests, after decimation to about this many samples per settling time
-LAGS, SAMPLES_PER_SETTLING = 20, 20
+#: Largest lag of the residual tests (whiteness and input correlation), as MATLAB's ``resid`` draws them;
+#: the residual is decimated so that these lags span G's settling time (:func:`lag_step`).
+MAX_LAG = 25
 
 
 @dataclass(frozen=True)
@@ -293,10 +294,6 @@ def estimate_floor(records, quantum: float = 0.0) -> NoiseFloor:
 # ----------------------------------------------------------------------------------------------
 # residual tests
 
-#: Largest lag of the residual tests (whiteness and input correlation), as MATLAB's ``resid`` draws them.
-MAX_LAG = 25
-
-
 def _lags(n: int, max_lag: int) -> int:
     return int(max(1, min(max_lag, n // 4)))
 
@@ -355,18 +352,34 @@ def _scored(model, records, starts: dict | None, settle_s: float) -> list[tuple]
     return out
 
 
-def _residual_tests(scored, step: int) -> tuple[float | None, float | None]:
-    """Whiteness and input-correlation p-values over the records, each residual decimated by ``step``."""
+def lag_step(dt: float, settle_s: float, max_lag: int = MAX_LAG) -> int:
+    """Decimation of the residual tests: every ``step``-th sample, so that ``max_lag`` lags span the
+    settling time ``settle_s`` of G (``floor(settle_s / (max_lag dt))``, at least 1). No filter, so a
+    white residual stays white; at the raw rate, 25 lags of a fast sampler see only the first instants
+    of the model's memory."""
+    if not (dt > 0 and np.isfinite(settle_s) and settle_s > 0):
+        return 1
+    return max(1, int(np.floor(settle_s / (max_lag * dt) + 1e-9)))
+
+
+def residual_tests(residuals, inputs, step: int = 1, max_lag: int = MAX_LAG) -> tuple[float | None, float | None]:
+    """The whiteness (Ljung-Box, :func:`ljung_box`) and input-correlation (:func:`input_correlation`)
+    p-values pooled over records: each residual and its input decimated by ``step`` (less on a record
+    too short to give ``5 max_lag`` samples after it), the chi-square statistics and their degrees of
+    freedom summed. Records with fewer than ``4 max_lag`` samples after decimation, or a residual not
+    finite, are left out; ``(None, None)`` where none is left. The one definition of these p-values:
+    ``hwid compare``'s JSON, its figures and every adequacy verdict use it."""
     qw = qi = 0.0
     mw = mi = 0
-    for e, u, _ in scored:
-        k = max(1, min(step, e.size // (5 * LAGS)))      # a slow model's long records still get their lags
+    for e, u in zip(residuals, inputs):
+        e, u = np.asarray(e, float), np.asarray(u, float)
+        k = max(1, min(int(step), e.size // (5 * max_lag)))
         e, u = e[::k], u[::k]
-        if e.size < 4 * LAGS or not np.all(np.isfinite(e)):
+        if e.size < 4 * max_lag or not np.all(np.isfinite(e)):
             continue
-        a, m = ljung_box(e, LAGS)
-        b, k = input_correlation(e, u, LAGS)
-        qw, mw, qi, mi = qw + a, mw + m, qi + b, mi + k
+        a, m = ljung_box(e, max_lag)
+        b, j = input_correlation(e, u, max_lag)
+        qw, mw, qi, mi = qw + a, mw + m, qi + b, mi + j
     if not mw:
         return None, None
     return float(special.chdtrc(mw, qw)), float(special.chdtrc(mi, qi))
@@ -401,7 +414,7 @@ def assess(model, records, held_out=(), floor: NoiseFloor | None = None, starts:
         floor = estimate_floor(records + held_out)
     settle = settling_time(model)
     fit, held = _scored(model, records, starts, settle), _scored(model, held_out, starts, settle)
-    step = max(1, int(settle / (SAMPLES_PER_SETTLING * records[0].dt))) if records and np.isfinite(settle) else 1
+    step = lag_step(records[0].dt, settle) if records else 1
     return judge(fit, floor, held, step, alpha, label)
 
 
@@ -409,7 +422,7 @@ def judge(scored, floor: NoiseFloor, held_out=(), step: int = 1, alpha: float = 
           label: str = "its own records") -> Adequacy:
     """The verdict on a model's residuals: ``scored`` and ``held_out`` hold ``(residual, input,
     output)`` per record on its scored samples; ``step`` decimates the residual for the residual
-    tests (about :data:`SAMPLES_PER_SETTLING` samples per settling time).
+    tests (:func:`lag_step`).
 
     ``misfit`` when a residual is not finite (the free run diverges), when the RMS exceeds the
     output's own spread (worse than the output's mean), or when the worst RMS over the floor exceeds
@@ -420,7 +433,7 @@ def judge(scored, floor: NoiseFloor, held_out=(), step: int = 1, alpha: float = 
     rms_fit, rms_held = _rms(fit), _rms(held)
     rms_fit = float("nan") if rms_fit is None else rms_fit
     n_scored = sum(s[0].size for s in fit + held)
-    white_p, input_p = _residual_tests(fit + held, step)
+    white_p, input_p = residual_tests([s[0] for s in fit + held], [s[1] for s in fit + held], step)
     parts = [(rms_fit, fit, label)] + ([(rms_held, held, "the held-out records")] if held else [])
     ratio = max(r for r, _, _ in parts) / floor.sigma
     spread = _spread([s[2] for s in fit + held])

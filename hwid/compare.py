@@ -11,7 +11,9 @@ the rig was left, which the model cannot know). Then, per experiment and over al
 * the model's adequacy (:func:`hwid.adequacy.assess`, from the estimated initial states): ``misfit``
   where the RMS exceeds the floor by more than sampling variability allows;
 * residual tests (``resid``): whiteness (Ljung-Box on the residual's autocorrelation) and
-  correlation with past inputs (the cross-correlation's chi-square statistic), with their p-values.
+  correlation with past inputs (the cross-correlation's chi-square statistic), with their p-values
+  (:func:`hwid.adequacy.residual_tests`, decimated so their lags span G's settling time: the same
+  numbers as the figures and the adequacy verdict).
 """
 from __future__ import annotations
 
@@ -19,11 +21,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy import optimize, special
+from scipy import optimize
 
 from hwid import HwidError
 from hwid import adequacy
-from hwid.adequacy import MAX_LAG, input_correlation, ljung_box
+from hwid.adequacy import lag_step, residual_tests, settling_time
 from hwid.model import HWModel
 
 
@@ -57,6 +59,7 @@ class CompareResult:
     model: dict
     adequacy: adequacy.Adequacy | None = None
     figures: tuple[str, ...] = ()      # the figures written, relative to the output folder
+    lag_step: int = 1                  # the residual tests' decimation (:func:`hwid.adequacy.lag_step`)
 
     @property
     def rms_over_floor(self) -> float | None:
@@ -66,7 +69,8 @@ class CompareResult:
         return {"fit_percent": self.fit_percent, "rms": self.rms, "noise_floor": self.noise_floor,
                 "rms_over_floor": self.rms_over_floor,
                 "experiments": [asdict(e) for e in self.experiments],
-                "residual": {"whiteness_p": self.whiteness_p, "input_correlation_p": self.input_correlation_p},
+                "residual": {"whiteness_p": self.whiteness_p, "input_correlation_p": self.input_correlation_p,
+                             "lag_step": self.lag_step},
                 "model": self.model, "adequacy": None if self.adequacy is None else self.adequacy.to_dict(),
                 "figures": list(self.figures)}
 
@@ -118,30 +122,32 @@ def compare_records(model: HWModel, records, noise_floor: float | None = None,
     if not records:
         raise HwidError("compare: the config yields no experiments to compare with")
     fits, sims = [], {}
-    q_white = q_input = 0.0
-    dof_white = dof_input = 0
-    ys, yhs = [], []
+    step = lag_step(records[0].dt, settling_time(model))
+    ys, yhs, residuals = [], [], []
     for rec in records:
         gear, rest, y_hat = initial_state(model, rec.u, rec.y, rec.dt)
         residual = rec.y - y_hat
-        qw, mw = ljung_box(residual, MAX_LAG)
-        qi, mi = input_correlation(residual, rec.u, MAX_LAG)
-        q_white, dof_white, q_input, dof_input = q_white + qw, dof_white + mw, q_input + qi, dof_input + mi
+        white_p, input_p = residual_tests([residual], [rec.u], step)
         sims[rec.name] = y_hat
         ys.append(rec.y)
         yhs.append(y_hat)
+        residuals.append(residual)
         fits.append(ExperimentFit(rec.name, fit_percent(rec.y, y_hat), float(np.sqrt(np.mean(residual ** 2))),
-                                  int(rec.y.size), gear, rest, float(special.chdtrc(mw, qw)),
-                                  float(special.chdtrc(mi, qi))))
+                                  int(rec.y.size), gear, rest, _p(white_p), _p(input_p)))
+    white_p, input_p = residual_tests(residuals, [rec.u for rec in records], step)
     y_all, yh_all = np.concatenate(ys), np.concatenate(yhs)
     floor = floor_of(records, noise_floor)
     starts = {e.name: {"gear": e.gear, "rest": e.rest} for e in fits}
     judged = adequacy.assess(model, records, floor=floor, starts=starts, label="the records")
     result = CompareResult(fit_percent(y_all, yh_all), float(np.sqrt(np.mean((y_all - yh_all) ** 2))),
                            floor.sigma if floor.determined else None, tuple(fits),
-                           float(special.chdtrc(dof_white, q_white)), float(special.chdtrc(dof_input, q_input)),
-                           dict(model_info or {}), judged)
+                           _p(white_p), _p(input_p), dict(model_info or {}), judged, lag_step=step)
     return result, sims
+
+
+def _p(p: float | None) -> float:
+    """A p-value, NaN where the record was too short to test."""
+    return float("nan") if p is None else float(p)
 
 
 def floor_of(records, noise_floor: float | None) -> adequacy.NoiseFloor:

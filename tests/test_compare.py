@@ -8,7 +8,8 @@ import pytest
 
 import rigs
 from hwid import config
-from hwid.compare import compare_records, fit_percent, initial_state, input_correlation, ljung_box
+from hwid.adequacy import input_correlation, ljung_box
+from hwid.compare import compare_records, fit_percent, initial_state
 from hwid.model import from_config
 from hwid.plant import Record, make_plant
 from hwid.simulate import run_protocols

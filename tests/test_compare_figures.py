@@ -10,8 +10,8 @@ import pytest
 import rigs
 from hwid import config
 from hwid.model import from_config
-from hwid.report.compare_figures import (Z99, lag_step, plot_experiment, plot_residual_tests,
-                                         residual_correlation, settling_time)
+from hwid.adequacy import lag_step, settling_time
+from hwid.report.compare_figures import Z99, plot_experiment, plot_residual_tests, residual_correlation
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -29,6 +29,7 @@ def test_compare_writes_its_figures_and_lists_them(tmp_path):
     assert d["figures"] == [f"figures/compare_{n}.png" for n in names] + ["figures/compare_residual_tests.png"]
     for rel in d["figures"]:
         assert (out / rel).read_bytes()[:8] == PNG
+    _same_p_values_everywhere(path, d)
     assert not list((out / "figures").glob("*.tmp"))
     from hwid.report.html import write_report
     page = write_report(out).read_text()
@@ -41,6 +42,23 @@ def test_compare_writes_its_figures_and_lists_them(tmp_path):
     names_shown = [f["name"] for f in json.loads((out / "report" / "figures.json").read_text())]
     assert names_shown == [rel.split("/")[-1][:-4] for rel in d["figures"]]
     assert all((out / "report" / f"{n}.svg").is_file() for n in names_shown)
+
+
+def _same_p_values_everywhere(path, d):
+    """The residual tests' p-values are one set of numbers: compare.json's, the figure's (drawn from
+    the same residuals at the same decimation) and the adequacy verdict's."""
+    from hwid.compare import compare_records, experiments_of
+    cfg = config.load(path)
+    model = from_config(cfg.plant)
+    records, floor = experiments_of(cfg, path.parent / "again")
+    result, sims = compare_records(model, records, floor)
+    assert result.lag_step == d["residual"]["lag_step"] == lag_step(records[0].dt, settling_time(model))
+    corr = residual_correlation([r.y - sims[r.name] for r in records], [r.u for r in records],
+                                step=result.lag_step)
+    assert corr.whiteness_p == pytest.approx(result.whiteness_p, rel=1e-12)
+    assert corr.input_correlation_p == pytest.approx(result.input_correlation_p, rel=1e-12)
+    assert result.adequacy.whiteness_p == pytest.approx(result.whiteness_p, rel=1e-12)
+    assert d["residual"]["whiteness_p"] == pytest.approx(result.whiteness_p, rel=1e-9)   # the CLI's run, same seed
 
 
 def _coloured(rng, n):

@@ -42,7 +42,7 @@ def model_adequacy(ctx: Context) -> adequacy.Adequacy | None:
         scored.append((y[m] - np.asarray(x, float)[m], u[m], y[m]))
         pre = int((getattr(r, "attrs", None) or {}).get("pre", 0) or 0)   # a start estimated before the log
         own.append(replace(r, u=u[pre:], y=y[pre:]))
-    step = max(1, int(val.design.settle_s / (adequacy.SAMPLES_PER_SETTLING * val.design.dt)))
+    step = adequacy.lag_step(val.design.dt, val.design.settle_s)
     return adequacy.judge(scored, adequacy.estimate_floor(own), step=step, label="the validation records")
 
 

@@ -16,7 +16,8 @@ drawn as the System Identification Toolbox's ``resid`` draws them.
   Where the sampling is much faster than the model's dynamics, 25 lags of ``dt`` see only the
   first instants of the model's memory; the residual and the input are then decimated (every
   ``step``-th sample, no filter, so a white residual stays white) so that the ``M`` lags span the
-  settling time of G (:func:`lag_step`), and the lag axis says so.
+  settling time of G (:func:`hwid.adequacy.lag_step`), and the lag axis says so. The p-values
+  are :func:`hwid.adequacy.residual_tests` on the same samples: the numbers of ``hwid compare``'s JSON.
 * :func:`with_figures`: writes the figures into ``OUT/figures/`` (atomically) and returns the
   comparison with their paths under ``figures``.
 
@@ -35,15 +36,12 @@ from typing import Mapping, Sequence
 
 import numpy as np
 from matplotlib.figure import Figure
-from scipy import special
 
-from hwid.adequacy import MAX_LAG, input_correlation, ljung_box
+from hwid.adequacy import MAX_LAG, lag_step, residual_tests, settling_time
 from hwid.report.figures import decimate_envelope
 
 #: two-sided 99 % normal quantile: ``resid``'s confidence level
 Z99 = 2.5758293035489004
-#: the lags should span this many time constants of G's slowest pole (its settling to 2 %)
-SETTLING_TIME_CONSTANTS = 4.0
 #: figures' folder inside the output directory
 FIGURES_DIR = "figures"
 
@@ -75,23 +73,6 @@ class ResidualCorrelation:
 
 # ------------------------------------------------------------------------------- the statistics
 
-def settling_time(model) -> float:
-    """Time for G's impulse response to settle: :data:`SETTLING_TIME_CONSTANTS` time constants of its
-    slowest stable pole, plus its delay (s); 0 when G has no stable pole away from 0."""
-    poles = np.asarray(model.linear.poles(), complex)
-    decay = -poles.real[poles.real < -1e-12]
-    slowest = SETTLING_TIME_CONSTANTS / float(decay.min()) if decay.size else 0.0
-    return slowest + float(model.linear.delay)
-
-
-def lag_step(dt: float, span_s: float, max_lag: int = MAX_LAG) -> int:
-    """Decimation so that ``max_lag`` lags span ``span_s`` seconds: ``floor(span_s / (max_lag dt))``,
-    at least 1 (no decimation where ``max_lag`` samples already span it)."""
-    if not (dt > 0 and np.isfinite(span_s) and span_s > 0):
-        return 1
-    return max(1, int(np.floor(span_s / (max_lag * dt) + 1e-9)))
-
-
 def _correlations(x: np.ndarray, z: np.ndarray, lags: np.ndarray) -> np.ndarray:
     """``sum_t x(t) z(t - k) / sqrt(sum x^2 sum z^2)`` for each lag ``k`` (means removed before)."""
     n = x.size
@@ -104,21 +85,14 @@ def residual_correlation(residuals: Sequence, inputs: Sequence, step: int = 1, m
     """The residuals' autocorrelation and cross-correlation with the inputs, one experiment per item,
     on every ``step``-th sample, pooled over the experiments (each weighted by its samples) with the
     99 % bands of the module's docstring; experiments with no more than ``2 max_lag`` samples after
-    decimation are left out of the correlations. The p-values pool :func:`hwid.adequacy.ljung_box`
-    and :func:`hwid.adequacy.input_correlation` (chi-square, their degrees of freedom summed) over the
-    same samples."""
+    decimation are left out of the correlations. The p-values are
+    :func:`hwid.adequacy.residual_tests` with the same ``step``: those of ``hwid compare``'s JSON."""
     auto_lags, cross_lags = np.arange(1, max_lag + 1), np.arange(-max_lag, max_lag + 1)
     auto, cross = np.zeros(max_lag), np.zeros(cross_lags.size)
     n_total, p_weighted, used = 0, 0.0, 0
-    q_white = q_input = 0.0
-    dof_white = dof_input = 0
     for e_full, u_full in zip(residuals, inputs):
         e = np.asarray(e_full, float)[::step]
         u = np.asarray(u_full, float)[::step]
-        if e.size > 4:
-            qw, mw = ljung_box(e)
-            qi, mi = input_correlation(e, u)
-            q_white, dof_white, q_input, dof_input = q_white + qw, dof_white + mw, q_input + qi, dof_input + mi
         if e.size <= 2 * max_lag:
             continue
         e, u = e - e.mean(), u - u.mean()
@@ -133,11 +107,11 @@ def residual_correlation(residuals: Sequence, inputs: Sequence, step: int = 1, m
     if n_total:
         auto, cross = auto / n_total, cross / n_total
     n_eff = max(n_total, 1)
+    white_p, input_p = residual_tests(residuals, inputs, step, max_lag)
     return ResidualCorrelation(
         auto_lags, auto, Z99 / np.sqrt(n_eff), cross_lags, cross, Z99 * np.sqrt(p_weighted) / n_eff,
         n_total, used, int(step), float(dt),
-        float(special.chdtrc(dof_white, q_white)) if dof_white else float("nan"),
-        float(special.chdtrc(dof_input, q_input)) if dof_input else float("nan"))
+        float("nan") if white_p is None else white_p, float("nan") if input_p is None else input_p)
 
 
 # ---------------------------------------------------------------------------------- the figures
@@ -222,7 +196,7 @@ def _write_png(fig: Figure, path: Path) -> None:
 
 def compare_figures(model, records: Sequence, sims: Mapping, result) -> dict[str, Figure]:
     """The figures of one comparison by file name: ``compare_<experiment>.png`` per experiment and
-    ``compare_residual_tests.png``; the residual tests decimated by :func:`lag_step` over the
+    ``compare_residual_tests.png``; the residual tests decimated by :func:`hwid.adequacy.lag_step` over the
     settling time of ``model``'s G."""
     fits = {e.name: e.fit_percent for e in result.experiments}
     out = {}
@@ -231,7 +205,7 @@ def compare_figures(model, records: Sequence, sims: Mapping, result) -> dict[str
             rec.name, rec.t, rec.y, sims[rec.name], fits.get(rec.name), result.noise_floor)
     dt = float(records[0].dt) if records else 1.0
     corr = residual_correlation([rec.y - sims[rec.name] for rec in records], [rec.u for rec in records],
-                                step=lag_step(dt, settling_time(model)), dt=dt)
+                                step=getattr(result, "lag_step", None) or lag_step(dt, settling_time(model)), dt=dt)
     out["compare_residual_tests.png"] = plot_residual_tests(corr)
     return out
 

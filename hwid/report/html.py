@@ -197,7 +197,8 @@ def _compare_figures(run: RunData) -> list[FigureItem]:
              for k, (name, rec) in enumerate(records.items())]
     dt = float(next(iter(records.values())).dt) if records else 1.0
     corr = compare_figures.residual_correlation([rec.y - sims[n] for n, rec in records.items()],
-                                                [rec.u for rec in records.values()], dt=dt)
+                                                [rec.u for rec in records.values()], dt=dt,
+                                                step=int(summary.get("residual", {}).get("lag_step") or 1))
     items.append(FigureItem("compare_residual_tests", "compare", COMPARE_TESTS_CAPTION,
                             compare_figures.plot_residual_tests(corr), f"compare_{len(items) // 2}"))
     return items
