@@ -36,9 +36,9 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from generate import LAB_VISIBLE_SAMPLES  # noqa: E402
-CATALOGUE = ["input_saturation", "rate_limit", "input_deadzone", "curved_borders", "time_delay",
-             "resonance", "sensor_lag", "sensor_saturation", "drift"]
+from generate import CATALOGUE, LAB_VISIBLE_SAMPLES  # noqa: E402
+#: every effect the diagnosis can name, whether or not this generator draws it
+NAMED = CATALOGUE + [e for e in ("friction", "output_hysteresis") if e not in CATALOGUE]
 WAYS = ["model", "identify", "recorded-model", "recorded-identify"]
 
 
@@ -81,7 +81,7 @@ def score(results: list[dict], sealed: dict, half_credit: bool = False) -> dict:
     """The table; with ``half_credit`` (the recorded ways) also ``credit``: a catalogue truth that is
     not the verdict but in its ``indistinguishable_from`` counts 0.5 (``halves`` of them)."""
     rows = ["none"] + CATALOGUE + ["outside"]
-    cols = ["none"] + CATALOGUE + ["unexplained", "error"]
+    cols = ["none"] + NAMED + ["unexplained", "error"]
     M = {r: {c: 0 for c in cols} for r in rows}
     correct, ratios, details = 0, [], []
     credit, halves = 0.0, 0
@@ -93,14 +93,14 @@ def score(results: list[dict], sealed: dict, half_credit: bool = False) -> dict:
             truth, unseen = "none", unseen + 1    # the lab log never shows the effect: a plain rig here
         row = truth if truth in rows else "outside"
         got = "error" if "error" in r else r["verdict"]["effect"]
-        M[row][got] += 1
+        M[row][got if got in M[row] else "error"] += 1
         ok = (got == truth) or (row == "outside" and got == "unexplained")
         correct += ok
         alike = [] if "error" in r else list(r["verdict"].get("indistinguishable_from") or [])
         half = (not ok) and truth in CATALOGUE and truth in alike
         credit += 1.0 if ok else (0.5 if half else 0.0)
         halves += bool(half)
-        if ok and got in CATALOGUE and r.get("gap_after") is not None and r.get("noise_floor"):
+        if ok and got in NAMED and r.get("gap_after") is not None and r.get("noise_floor"):
             ratios.append(r["gap_after"] / r["noise_floor"])
         details.append({**r, "truth": truth, "base": sealed[r["case"]]["base"], "truth_params": sealed[r["case"]]["params"],
                         "correct": bool(ok), **({"credit": 1.0 if ok else (0.5 if half else 0.0)} if half_credit else {})})
@@ -126,7 +126,7 @@ def score(results: list[dict], sealed: dict, half_credit: bool = False) -> dict:
 def print_table(sc: dict, way: str) -> None:
     short = {"none": "none", "input_saturation": "in_sat", "rate_limit": "rate", "input_deadzone": "dz",
              "curved_borders": "curv", "time_delay": "delay", "resonance": "reso", "sensor_lag": "lag",
-             "sensor_saturation": "y_sat", "drift": "drift", "unexplained": "unexp", "error": "err", "outside": "outside"}
+             "sensor_saturation": "y_sat", "drift": "drift", "friction": "fric", "output_hysteresis": "y_hyst", "unexplained": "unexp", "error": "err", "outside": "outside"}
     print(f"\nblind check, way = {way}: {sc['correct']}/{sc['n']} correct ({100 * sc['accuracy']:.0f} %)")
     if "credit" in sc:
         print(f"correct (half credit for indistinguishable): {sc['credit']:g}/{sc['n']} "
@@ -158,8 +158,14 @@ def main():
     ap.add_argument("--way", choices=WAYS, default="model")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--only", nargs="*", help="case ids (default: all)")
+    ap.add_argument("--rescore", action="store_true", help="score the diagnoses saved in RAW-<way>.json again, "
+                                                          "running none")
     a = ap.parse_args()
     root = Path(a.cases)
+    raw = root / f"RAW-{a.way}.json"
+    if a.rescore:
+        report(root, a.way, json.loads(raw.read_text()), 0.0)
+        return
     cases = sorted(p for p in root.iterdir() if p.is_dir() and (p / "config.yaml").exists())
     if a.way.startswith("recorded"):
         missing = [c.name for c in cases if not (c / "recorded.yaml").exists()]
@@ -173,12 +179,17 @@ def main():
         for r in ex.map(lambda c: diagnose_case(c, a.way), cases):
             print(f"{r['case']}: {r.get('verdict', r.get('error'))} ({r['seconds']:.0f} s)", flush=True)
             results.append(r)
-    # only now: the labels
+    raw.write_text(json.dumps(results, indent=1, default=str))   # kept before the labels are opened
+    report(root, a.way, results, time.perf_counter() - t0)
+
+
+def report(root: Path, way: str, results: list[dict], wall: float) -> None:
+    """Only now: the labels; the table and ``RESULTS-<way>.json``."""
     sealed = json.loads((root / "sealed.json").read_text())
-    sc = score(results, sealed, half_credit=a.way.startswith("recorded"))
-    sc["wall_seconds"] = time.perf_counter() - t0
-    print_table(sc, a.way)
-    (root / f"RESULTS-{a.way}.json").write_text(json.dumps(sc, indent=1, default=str))
+    sc = score(results, sealed, half_credit=way.startswith("recorded"))
+    sc["wall_seconds"] = wall
+    print_table(sc, way)
+    (root / f"RESULTS-{way}.json").write_text(json.dumps(sc, indent=1, default=str))
 
 
 if __name__ == "__main__":
