@@ -93,11 +93,21 @@ class Adequacy:
     def misfit(self) -> bool:
         return self.verdict == "misfit"
 
+    @property
+    def model_error(self) -> float | None:
+        """The model's own error (RMS, units of y) beside the noise: ``sigma sqrt(ratio^2 - 1)``, the
+        part of the worst residual the noise floor does not account for (0 within the floor; None
+        where the ratio is not finite or the floor undetermined). A misfit over millions of samples
+        may be a model error small beside the noise: this says how small."""
+        if not (np.isfinite(self.ratio) and self.floor.determined):
+            return None
+        return float(self.floor.sigma * np.sqrt(max(self.ratio ** 2 - 1.0, 0.0)))
+
     def to_dict(self) -> dict:
         return {"verdict": self.verdict, "rms_fit": self.rms_fit, "rms_held_out": self.rms_held_out,
                 "floor": self.floor.to_dict(), "ratio": self.ratio, "whiteness_p": self.whiteness_p,
                 "input_correlation_p": self.input_correlation_p, "reason": self.reason, "scored": self.scored,
-                "bound": self.bound}
+                "bound": self.bound, "model_error": self.model_error}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -461,9 +471,11 @@ def judge(scored, floor: NoiseFloor, held_out=(), step: int = 1, alpha: float = 
     bad = [v for v in verdicts if v[0]]
     if bad:
         _, rms, bound, what = max(bad, key=lambda v: v[1] / v[2])
+        own = floor.sigma * np.sqrt(max((rms / floor.sigma) ** 2 - 1.0, 0.0))
         return result("misfit", f"RMS {rms:.4g} on {what} = {rms / floor.sigma:.3g} x the noise floor "
                                 f"{floor.sigma:.4g} ({floor.source}), above the {bound:.3g} a correct model reaches "
-                                f"(false-alarm rate {alpha:g})", bound)
+                                f"(false-alarm rate {alpha:g}); the model's own error is about {own:.3g} RMS, "
+                                f"{own / floor.sigma:.2g} x the noise", bound)
     bound = max(v[2] for v in verdicts)
     return result("adequate", f"RMS {worst[0]:.4g} on {worst[2]} = {ratio:.3g} x the noise floor {floor.sigma:.4g} "
                               f"({floor.source}), within the {bound:.3g} a correct model reaches", bound)

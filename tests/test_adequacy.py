@@ -132,3 +132,21 @@ def test_to_dict_keys():
     assert {"verdict", "rms_fit", "rms_held_out", "floor", "ratio", "whiteness_p", "input_correlation_p",
             "reason"} <= set(d)
     assert {"sigma", "source", "quantum"} <= set(d["floor"])
+
+
+def test_model_error_is_the_error_beside_the_noise():
+    """A model whose only error is known: the plant's h carries an offset b = 0.015 (1.5 sigma)
+    that the model lacks. The misfit's ``model_error`` is b within sampling (the floor's
+    interval sets the tolerance: b^2 = rms^2 - sigma^2, both from the data), and the reason says it."""
+    b = 0.015
+    plant = HWModel(model().input, model().linear, PolynomialH((b, 0.5, 0, -0.2, 0, 0.1)))
+    rng = np.random.default_rng(27)
+    recs = [record("stairs", staircase(0.05), 0.05, rng, plant=plant), record("sine", sine(0.05), 0.05, rng, plant=plant)]
+    ad = adequacy.assess(model(), recs)
+    assert ad.verdict == "misfit", ad.reason
+    lo, hi = ad.floor.interval()
+    # rms^2 = b^2 + sigma^2 exactly in expectation; the floor's 95 % interval bounds the estimate's spread
+    assert np.sqrt(max(ad.rms_fit ** 2 - hi ** 2, 0)) <= b <= np.sqrt(ad.rms_fit ** 2 - lo ** 2)
+    assert ad.model_error == pytest.approx(np.sqrt(ad.rms_fit ** 2 - ad.floor.sigma ** 2), rel=1e-12)
+    assert f"{ad.model_error:.3g}" in ad.reason and ad.to_dict()["model_error"] == ad.model_error
+    assert adequacy.assess(model(), own_records(28)).model_error < 0.5 * SIGMA
