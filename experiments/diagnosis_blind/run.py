@@ -183,11 +183,24 @@ def main():
     report(root, a.way, results, time.perf_counter() - t0)
 
 
+def hwid_commit() -> str:
+    """The commit of the hwid checkout the diagnoses ran (the one ``python -m hwid`` imports here),
+    ``+changes`` where its tree differs."""
+    import importlib.util
+    spec = importlib.util.find_spec("hwid")
+    if spec is None or spec.origin is None:
+        return "unknown"
+    sys.path.insert(0, str(HERE.parents[1] / "docs"))
+    from fragment import commit
+    return commit(Path(spec.origin).resolve().parents[1])
+
+
 def report(root: Path, way: str, results: list[dict], wall: float) -> None:
     """Only now: the labels; the table and ``RESULTS-<way>.json``."""
     sealed = json.loads((root / "sealed.json").read_text())
     sc = score(results, sealed, half_credit=way.startswith("recorded"))
     sc["wall_seconds"] = wall
+    sc["hwid_commit"] = hwid_commit()
     print_table(sc, way)
     (root / f"RESULTS-{way}.json").write_text(json.dumps(sc, indent=1, default=str))
 
