@@ -1,6 +1,7 @@
-"""The diagnosis's simulator of a model on its experiments (:class:`ModelSim`), with the signal
-primitives the effects are built from (a slew, a play between two border arrays, a direction map,
-a dead zone, a first-order lag, a zero-phase smoother).
+"""The diagnosis's simulator of a model on its experiments (:class:`ModelSim`), with the zero-phase
+smoother a drift is estimated with; the signal maps the effects are built from (a play between two
+border arrays, a direction map, a first-order lag, ...) are the model's own,
+:mod:`hwid.blocks.effects`.
 
 :class:`ModelSim` caches the chain's intermediate signals so an effect recomputes only what it
 changes, carries the input each experiment's plant received before it (an actuator with memory),
@@ -11,7 +12,6 @@ effect leaves open: the gear's position (:meth:`ModelSim.gear_start`) and G's re
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 from scipy.ndimage import uniform_filter1d
 
 from hwid.blocks.linear import LinearBlock
@@ -21,34 +21,6 @@ from hwid.model import HWModel, InputNonlinearity
 
 
 # ------------------------------------------------------------------------------ signal primitives
-
-@njit(cache=True)
-def play_arrays(lo, hi, v0):
-    out = np.empty_like(lo)
-    prev = v0
-    for k in range(lo.shape[0]):
-        if prev < lo[k]:
-            prev = lo[k]
-        elif prev > hi[k]:
-            prev = hi[k]
-        out[k] = prev
-    return out
-
-
-@njit(cache=True)
-def direction_arrays(z, up, dn, u0):
-    out = np.empty_like(z)
-    prev = u0
-    for k in range(z.shape[0]):
-        if k > 0:
-            dz = z[k] - z[k - 1]
-            if dz > 0.0:
-                prev = up[k]
-            elif dz < 0.0:
-                prev = dn[k]
-        out[k] = prev
-    return out
-
 
 def since_crossed(u, F: InputNonlinearity) -> int:
     """Samples back from the end of ``u`` to the start of the shortest tail over which ``u`` spans
@@ -62,27 +34,6 @@ def since_crossed(u, F: InputNonlinearity) -> int:
     lo = np.minimum.accumulate(r)
     done = np.flatnonzero(hi - lo > width)
     return int(done[0]) + 1 if done.size else int(u.size)
-
-
-def first_order(x, tau: float, dt: float) -> np.ndarray:
-    """``1/(tau s + 1)`` applied to ``x`` (exact for a zero-order-held input), from equilibrium;
-    a matrix is filtered column by column (a design matrix whose columns all pass the lag).
-
-    The sampled lag is ``y[k+1] = a y[k] + (1 - a) x[k]``, ``a = exp(-dt/tau)``, ``y[0] = x[0]``."""
-    x = np.asarray(x, float)
-    if tau <= 0 or x.shape[0] == 0:
-        return x
-    y = _first_order_rows(np.ascontiguousarray(x.reshape(x.shape[0], -1)), float(np.exp(-dt / float(tau))))
-    return y.reshape(x.shape)
-
-
-@njit(cache=True)
-def _first_order_rows(x, a):
-    y = np.empty_like(x)
-    y[0] = x[0]
-    for k in range(1, x.shape[0]):
-        y[k] = a * y[k - 1] + (1.0 - a) * x[k - 1]
-    return y
 
 
 def smooth(r, width: int) -> np.ndarray:
