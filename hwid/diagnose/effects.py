@@ -104,10 +104,12 @@ class RateLimit(Effect):
         # remembered)
         act = slewed(np.concatenate([prev, u]), theta[0], sim.dt)
         call = act[prev.size:]
+        sim.note_start(i, position=float(act[prev.size - 1]))
         g0 = sim.gear_start(call, i)
         if g0 is not None:
             carried = sim.from_v(sim.model.input.apply(call, g0))
         else:
+            sim.note_start(i, carried_from_tail=True)     # the chain run through the tail: no (gear, rest) start
             k = max(sim.lead_samples(i), since_crossed(act[:prev.size], sim.model.input))
             carried = sim.from_input(act[prev.size - k:])[k:]
         return fresh + c * (carried - fresh)

@@ -72,6 +72,21 @@ class ModelSim:
 
     #: a nuisance start is looked for on this many points across its range first
     NUISANCE_POINTS = 9
+    #: where not None, a dict ``{i: {...}}`` the starts estimated for experiment ``i`` are noted in
+    #: (:meth:`note_start`): what a model simulating the same prediction must start from
+    starts_seen = None
+
+    def note_start(self, i: int | None, **starts) -> None:
+        """Note the starts an effect's prediction on experiment ``i`` used (:attr:`starts_seen`):
+        ``gears`` and ``rests`` are appended to, anything else is set."""
+        if self.starts_seen is None or i is None:
+            return
+        d = self.starts_seen.setdefault(i, {"gears": [], "rests": []})
+        for key, value in starts.items():
+            if key in ("gears", "rests"):
+                d[key].append(value)
+            else:
+                d[key] = value
 
     def __init__(self, model: HWModel, dt: float, inputs, u_before=None, lead=None, pre=None):
         self.model = model
@@ -94,6 +109,7 @@ class ModelSim:
         new.dt, new.inputs, new.v, new.w = self.dt, self.inputs, self.v, self.w
         new.u_before, new.lead, new.measured = self.u_before, self.lead, self.measured
         new.pre, new.free_ringing = self.pre, self.free_ringing
+        new.starts_seen = self.starts_seen
         new.x = [h(w) for w in self.w]
         return new
 
@@ -147,6 +163,12 @@ class ModelSim:
         Started anywhere in the play, a backlash's output is ``clip(g0, v_lo, v_hi)`` with
         ``v_lo, v_hi`` its outputs from the play's two ends at ``u[0]``: one number per
         experiment, a nuisance parameter like the initial state ``hwid compare`` estimates."""
+        g0 = self._gear_start(u, i, F)
+        self.note_start(i, gears=g0)
+        return g0
+
+    def _gear_start(self, u, i: int, F: InputNonlinearity | None = None) -> float | None:
+        """:meth:`gear_start`, not noted."""
         F = F or self.model.input
         scored = self._scored(i) if F.type == "backlash" and u.size else None
         if scored is None:
@@ -222,7 +244,9 @@ class ModelSim:
             r = ys - h(w + (level - v[0]) * d)[m]
             return float(r @ r)
 
-        return w + (self._search(cost, lo, hi) - v[0]) * d
+        level = self._search(cost, lo, hi)
+        self.note_start(i, rests=float(level))
+        return w + (level - v[0]) * d
 
     #: a mode of G still rings at the first scored sample where what it could carry there from a
     #: start anywhere in the working range moves the output by more than this share of the floor
@@ -300,6 +324,8 @@ class ModelSim:
                 step *= 0.5
             if not better:
                 break
+        if np.any(c != 0):
+            self.note_start(i, ringing=True)
         return w + B @ c
 
     def before(self, i: int):
@@ -340,6 +366,7 @@ class ReblockedSim(ModelSim):
         self.pre = getattr(base, "pre", None)
         self.measured = getattr(base, "measured", None)
         self.free_ringing = getattr(base, "free_ringing", True)
+        self.starts_seen = getattr(base, "starts_seen", None)
         self._v = self._w = self._x = None
 
     @property
