@@ -245,6 +245,31 @@ def curved_output(F, u, B, theta, degree: int, play: bool, half: float, start: f
     return direction_arrays(u, np.ascontiguousarray(up), np.ascontiguousarray(dn), v0)
 
 
+def free_response(n: int, k0: int, dt: float, poles) -> np.ndarray:
+    """The free response of G's modes ``poles`` (each with ``Im >= 0``) from sample ``k0`` on, as
+    columns: ``exp(Re t) cos(Im t)`` and, for a complex pole, ``exp(Re t) sin(Im t)``,
+    ``t = (k - k0) dt``, zero before ``k0``. Its amplitudes are a mode's state where a record's
+    scored part begins (a ringing start, :meth:`hwid.diagnose.modelsim.ModelSim.ringing`)."""
+    tau = (np.arange(n) - k0) * dt
+    after = tau >= 0.0
+    cols = []
+    for lam in np.atleast_1d(np.asarray(poles, complex)):
+        env = np.where(after, np.exp(lam.real * np.where(after, tau, 0.0)), 0.0)
+        cols.append(env * np.cos(lam.imag * tau))
+        if lam.imag > 0:
+            cols.append(env * np.sin(lam.imag * tau))
+    return np.column_stack(cols)
+
+
+def with_ringing(w, dt: float, ringing: dict | None) -> np.ndarray:
+    """``w`` with a ringing start added (``{"from_sample", "poles": [[re, im], ...], "amplitudes"}``,
+    :func:`free_response`); ``w`` itself for None."""
+    if not ringing:
+        return w
+    poles = [complex(re, im) for re, im in ringing["poles"]]
+    return w + free_response(w.size, int(ringing["from_sample"]), dt, poles) @ np.asarray(ringing["amplitudes"], float)
+
+
 # ------------------------------------------------------------------------------ an effect in a model
 
 @dataclass(frozen=True)
@@ -324,8 +349,9 @@ def effective_blocks(F, G: LinearBlock, specs):
     return F, G
 
 
-def _after_input(F, G, h, specs, u, dt, gear, rest):
-    """``(v, w, x)`` of the chain after the input effects, on the actuator's output ``u``."""
+def _after_input(F, G, h, specs, u, dt, gear, rest, ringing=None):
+    """``(v, w, x)`` of the chain after the input effects, on the actuator's output ``u`` (G's
+    output with a ringing start added, :func:`with_ringing`)."""
     curve = next((s for s in specs if s.effect == "curved_borders"), None)
     if curve is not None:
         d = dict(curve.params)
@@ -340,7 +366,7 @@ def _after_input(F, G, h, specs, u, dt, gear, rest):
     for s in specs:
         if s.effect == "friction":
             drive = friction_drive(drive, s.get("coulomb"), s.get("pre_sliding"), s.get("viscous", 0.0), dt)
-    w = G.simulate(drive, dt, rest)
+    w = with_ringing(G.simulate(drive, dt, rest), dt, ringing)
     wh = w
     for s in specs:
         if s.effect == "output_hysteresis":
@@ -355,7 +381,7 @@ def _after_input(F, G, h, specs, u, dt, gear, rest):
 
 
 def run_chain_with_effects(F, G: LinearBlock, h, specs, u, dt: float, gear: float | None = None,
-                           rest: float | None = None, position: float | None = None):
+                           rest: float | None = None, position: float | None = None, ringing: dict | None = None):
     """The chain of eqs. (3a-c) with the effects ``specs`` at their blocks on the command ``u``:
     ``(v, w, x)``, ``v`` F's output (the gear), ``w`` G's output (before an output hysteresis),
     ``x`` the noise-free output. ``gear``, ``rest``: F's and G's starts as in
@@ -366,12 +392,35 @@ def run_chain_with_effects(F, G: LinearBlock, h, specs, u, dt: float, gear: floa
     F, G = effective_blocks(F, G, specs)
     fresh, carried, share = _input_stage(specs, np.ascontiguousarray(u, float), dt, position)
     if carried is not None and share >= 1.0:       # the carried actuator alone
-        return _after_input(F, G, h, specs, carried, dt, gear, rest)
-    v, w, x = _after_input(F, G, h, specs, fresh, dt, gear, rest)
+        return _after_input(F, G, h, specs, carried, dt, gear, rest, ringing)
+    v, w, x = _after_input(F, G, h, specs, fresh, dt, gear, rest, ringing)
     if carried is not None:
-        _, _, xc = _after_input(F, G, h, specs, carried, dt, gear, rest)
+        _, _, xc = _after_input(F, G, h, specs, carried, dt, gear, rest, ringing)
         x = x + share * (xc - x)
     return v, w, x
+
+
+@dataclass(frozen=True)
+class OutputStage:
+    """h with the effects between G's output and the sensor's reading: ``w -> [output_hysteresis]
+    -> h -> [sensor_lag, sensor_saturation]``, called as h is (on whole records: a sensor lag has
+    memory, from equilibrium at the first sample)."""
+
+    h: object
+    specs: tuple
+    dt: float
+
+    def __call__(self, w):
+        for s in self.specs:
+            if s.effect == "output_hysteresis":
+                w = hysteresis(w, s.get("width"), s.get("weight", 1.0))
+        x = self.h(w)
+        for s in self.specs:
+            if s.effect == "sensor_lag":
+                x = first_order(x, s.get("tau_s"), self.dt)
+            elif s.effect == "sensor_saturation":
+                x = np.clip(x, s.get("y_lo"), s.get("y_hi"))
+        return x
 
 
 def scaled_for_normalisation(spec: EffectSpec, k_v: float, k_w: float) -> EffectSpec:

@@ -59,10 +59,11 @@ def _with_actuator_as_effects(model: HWModel) -> HWModel:
 
 def starts_after(verdict, fitter) -> dict[int, dict] | None:
     """Per validation experiment (index), the start of :func:`corrected`'s model that gives the
-    verdict's prediction: ``gear``, ``rest``, ``position`` (each None for the model's default), and
-    ``exact`` False where the prediction used a start no model simulation takes (a mode's free
-    ringing fitted to the data, an actuator run on through the call before). None without a
-    deterministic verdict."""
+    verdict's prediction: ``gear``, ``rest``, ``position``, ``ringing`` (each None for the model's
+    default; the arguments of :meth:`hwid.model.HWModel.simulate`), and ``exact`` False where the
+    prediction used a start no model simulation takes (an actuator run on through the call before
+    from where it last crossed the play, fresh and carried actuators from two gear starts). None
+    without a deterministic verdict."""
     if not isinstance(verdict, Candidate) or verdict.fitted is None or verdict.fitted.disturbance:
         return None
     preds, seen = fitter.noted_predictions(verdict.fitted, verdict.theta)
@@ -73,12 +74,13 @@ def starts_after(verdict, fitter) -> dict[int, dict] | None:
         gears = s["gears"]
         # a rate limit that carries its position over: the carried actuator alone at carried = 1
         gear = gears[-1] if share >= 1.0 and gears else (gears[0] if gears else None)
-        exact = not s.get("ringing") and not s.get("carried_from_tail")
+        exact = not s.get("carried_from_tail")
         if 0.0 < share < 1.0 and len(gears) > 1 and gears[0] != gears[-1]:
             exact = False           # the fresh and the carried actuator start the gear apart
         same = bool(np.array_equal(pred, verdict.predictions[i]))
         out[i] = {"gear": gear, "rest": s["rests"][-1] if s["rests"] else None,
-                  "position": s.get("position") if share > 0 else None, "exact": bool(exact and same)}
+                  "position": s.get("position") if share > 0 else None, "ringing": s.get("ringing"),
+                  "exact": bool(exact and same)}
     return out
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 
+from hwid.blocks.effects import free_response
 from hwid.blocks.linear import LinearBlock
 from hwid.diagnose.experiments import settling_time
 from hwid.diagnose.starts import search_1d
@@ -48,6 +49,44 @@ def simulate_linear(G: LinearBlock, v, dt: float) -> np.ndarray:
     """:meth:`LinearBlock.simulate` (exact ZOH with fractional delay, from the equilibrium of
     ``v[0]``; its discretisation is cached, so the fits can simulate one G many times)."""
     return G.simulate(v, dt)
+
+
+def folded(model: HWModel, dt: float) -> HWModel:
+    """A model that carries effects (a diagnosis's ``corrected.yaml`` given as ``--model``) as the
+    diagnosis's blocks: its input effects as the actuator (:class:`hwid.model.Actuator`: a clip, a
+    slew from each call's start, a dead zone, in that order), F and G as the effects change them
+    (:func:`hwid.blocks.effects.effective_blocks`), the effects after G in h
+    (:class:`hwid.blocks.effects.OutputStage`), so each candidate is added to the model whole. A
+    friction or a bend of F's borders, or input effects in another order, cannot be folded into
+    those blocks: ``ValueError`` with a sentence."""
+    from hwid.blocks.effects import OutputStage, effective_blocks
+    from hwid.model import Actuator
+    specs = model.effects
+    if not specs:
+        return model
+    inputs = [s for s in specs if s.block == "input"]
+    order = ["input_saturation", "rate_limit", "input_deadzone"]
+    names = [s.effect for s in inputs]
+    if any(n not in order for n in names) or names != sorted(names, key=order.index) or len(set(names)) < len(names):
+        raise ValueError(f"the model's input effects ({', '.join(names)}) cannot be diagnosed as its actuator "
+                         "(at most one clip, one slew and one dead zone, in that order)")
+    if model.actuator is not None and inputs:
+        raise ValueError("the model carries both an actuator and input effects")
+    for name, why in (("friction", "no place for it between F and G"), ("curved_borders", "straight borders")):
+        if any(s.effect == name for s in specs):
+            raise ValueError(f"a model carrying {name} cannot be diagnosed further (the diagnosis's blocks have {why})")
+    act = model.actuator
+    if inputs:
+        d = {s.effect: s for s in inputs}
+        clip = d.get("input_saturation")
+        rate = d.get("rate_limit")
+        act = Actuator(None if clip is None else (clip.get("u_lo"), clip.get("u_hi")),
+                       None if rate is None else rate.get("rate"),
+                       0.0 if "input_deadzone" not in d else d["input_deadzone"].get("delta"))
+    F, G = effective_blocks(model.input, model.linear, specs)
+    outs = tuple(s for s in specs if s.block == "output")
+    h = OutputStage(model.output, outs, float(dt)) if outs else model.output
+    return HWModel(F, G, h, act)
 
 
 # ------------------------------------------------------------------------------------ the simulator
@@ -89,7 +128,8 @@ class ModelSim:
                 d[key] = value
 
     def __init__(self, model: HWModel, dt: float, inputs, u_before=None, lead=None, pre=None):
-        self.model = model
+        self.model = folded(model, dt)
+        model = self.model
         self.dt = float(dt)
         self.inputs = [np.ascontiguousarray(u, float) for u in inputs]
         self.u_before = ([None if b is None else np.ascontiguousarray(b, float) for b in u_before]
@@ -284,26 +324,17 @@ class ModelSim:
             return w
         y, m, h, sigma = scored
         k0 = int(np.argmax(m))
-        tau = (np.arange(w.size) - k0) * self.dt
-        after = tau >= 0.0
         lo, hi = self.v_span
         reach = abs(float(G.dc_gain)) * (hi - lo)
         ws = w[m]
         eps = 1e-6 * max(1.0, float(np.max(np.abs(ws))))
         slope = float(np.max(np.abs(h(ws + eps) - h(ws - eps)))) / (2 * eps)
-        cols = []
-        for lam in np.atleast_1d(np.asarray(poles, complex)):
-            if lam.real >= 0 or lam.imag < 0:
-                continue
-            if reach * slope * np.exp(lam.real * k0 * self.dt) <= self.RINGING_SHOWS * sigma:
-                continue
-            env = np.where(after, np.exp(lam.real * np.where(after, tau, 0.0)), 0.0)
-            cols.append(env * np.cos(lam.imag * tau))
-            if lam.imag > 0:
-                cols.append(env * np.sin(lam.imag * tau))
-        if not cols:
+        kept = [lam for lam in np.atleast_1d(np.asarray(poles, complex))
+                if lam.real < 0 and lam.imag >= 0
+                and reach * slope * np.exp(lam.real * k0 * self.dt) > self.RINGING_SHOWS * sigma]
+        if not kept:
             return w
-        B = np.column_stack(cols)
+        B = free_response(w.size, k0, self.dt, kept)
         Bs, ys = B[m], y[m]
         c = np.zeros(B.shape[1])
         r = ys - h(ws)
@@ -325,7 +356,8 @@ class ModelSim:
             if not better:
                 break
         if np.any(c != 0):
-            self.note_start(i, ringing=True)
+            self.note_start(i, ringing={"from_sample": k0, "poles": [[float(p.real), float(p.imag)] for p in kept],
+                                        "amplitudes": [float(x) for x in c]})
         return w + B @ c
 
     def before(self, i: int):
