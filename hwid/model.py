@@ -22,7 +22,7 @@ import numpy as np
 
 from hwid.blocks import backlash as bl
 from hwid.blocks.chain import run_chain
-from hwid.blocks.effects import EffectSpec, run_chain_with_effects, scaled_for_normalisation
+from hwid.blocks.effects import EffectSpec, at_the_gear, run_chain_with_effects, scaled_for_normalisation
 from hwid.blocks.linear import LinearBlock, discretise, unit_rest
 from hwid.blocks.static import PiecewiseH, PolynomialH
 
@@ -269,6 +269,12 @@ class HWModel:
         x = self.output(w)
         y = None if noise_rng is None else x + noise_std * noise_rng.standard_normal(u.size)
         return Signals(v, w, x, float(v[-1]) if v.size else gear, y)
+
+    def at_the_gear(self, u, dt: float) -> tuple[InputNonlinearity, np.ndarray]:
+        """F as the model's effects leave it and the input it receives on the command ``u``
+        (through the actuator and the input effects, :func:`hwid.blocks.effects.at_the_gear`)."""
+        u = self.actuate(u, dt)
+        return at_the_gear(self.input, self.effects, u, dt) if self.effects else (self.input, u)
 
     def _with_effects(self, u, dt, gear, rest, noise_rng, noise_std, position, ringing) -> Signals:
         """:meth:`simulate` with the model's effects (the three-pass chain, never the fused one)."""

@@ -334,6 +334,15 @@ def _input_stage(specs, u, dt: float, position: float | None):
     return fresh, carried, share
 
 
+def at_the_gear(F, specs, u, dt: float):
+    """What F is and receives on the command ``u``: ``(F, u_F)``, F with a dead zone's absorbed
+    share out of its borders, ``u_F`` through the input effects (a rate limit slewing from
+    ``u[0]``). Where an initial state is searched (:func:`hwid.compare.initial_state`), the gear's
+    band is that of ``u_F``."""
+    specs = tuple(specs)
+    return effective_blocks(F, LinearBlock((1.0,), (1.0,)), specs)[0], _input_stage(specs, u, dt, None)[0]
+
+
 def effective_blocks(F, G: LinearBlock, specs):
     """F and G as the effects change them: the dead zone's absorbed share out of F's borders; the
     delay, the mode and the sensor lag's absorbed share in G."""
