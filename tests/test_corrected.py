@@ -193,3 +193,52 @@ def test_an_unexplained_or_none_verdict_writes_the_model_as_it_was(tmp_path):
     text = (tmp_path / "out" / "corrected.yaml").read_text()
     assert text.startswith("# hwid diagnose: verdict none: the model as it was diagnosed")
     assert model_from_yaml(tmp_path / "out" / "corrected.yaml") == model_from_yaml(tmp_path / "base.yaml")
+
+
+def _round_trip_error(out) -> float:
+    """The largest difference between ``OUT/corrected.yaml`` simulated from the noted starts and the
+    diagnosis's after-prediction, over the validation experiments (each start must be exact)."""
+    model = model_from_yaml(out / "corrected.yaml")
+    worst = 0.0
+    for e in read_diagnosis(out / "diagnosis.h5")["experiments"].values():
+        if e["role"] != "validation":
+            continue
+        st = e["start_after"]
+        assert st["exact"], e["start_after"]
+        x = model.simulate(e["u"], e["dt"], gear=st["gear"], rest=st["rest"], position=st["position"],
+                           ringing=st["ringing"]).x
+        worst = max(worst, float(np.max(np.abs(x - e["y_after"]))))
+    return worst
+
+
+@pytest.mark.slow
+def test_an_identified_model_s_corrected_yaml_round_trips(tmp_path):
+    """Without ``--model``: F and G as the effect's joint fit left them, h re-estimated with it and
+    written in powers of w, reproduce the after-prediction as well."""
+    cfg = config.load(_write(tmp_path / "rig.yaml", _config(_plant("sensor_lag"))))
+    summary = diagnose(cfg, tmp_path / "out", echo=lambda *a: None)
+    assert summary["verdict"]["effect"] == "sensor_lag"
+    assert _round_trip_error(tmp_path / "out") < 1e-9
+
+
+@pytest.mark.slow
+def test_corrected_yaml_as_model_again_leaves_nothing_to_name(tmp_path_factory):
+    """The time-delay rig diagnosed again with its corrected model as ``--model``: none."""
+    _, tmp = _diagnosed("time_delay", tmp_path_factory)
+    cfg = config.load(tmp / "rig.yaml")
+    again = diagnose(cfg, tmp / "again", model=tmp / "out" / "corrected.yaml", echo=lambda *a: None)
+    assert again["verdict"]["effect"] == "none"
+    assert again["gap_before"] / again["noise_floor"] < 1.1
+
+
+def test_corrected_yaml_loads_through_the_api_and_a_friction_model_is_refused_as_model(tmp_path, capsys):
+    import hwid
+    plant = _plant("friction")
+    path = tmp_path / "corrected.yaml"
+    _write(path, plant)
+    u = np.r_[np.zeros(20), np.linspace(0, 1, 200), np.ones(100), np.linspace(1, -1, 300)]
+    want = from_config(config.parse_plant(plant, "test")).simulate(u, DT).x
+    assert np.array_equal(hwid.Model.load(path).simulate(u, DT), want)
+    cfg = _write(tmp_path / "rig.yaml", _config(R.BASE))
+    code, err = _cli(["diagnose", cfg, "--model", path, "--out", tmp_path / "out"], capsys)
+    assert code == 2 and err.count("\n") == 1 and "cannot be diagnosed further" in err, err
