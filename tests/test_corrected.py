@@ -105,6 +105,20 @@ def test_each_effect_in_a_model_is_the_diagnosis_s_own(effect):
     assert np.max(np.abs(got - plain.simulate(u, DT).x)) > 3 * NOISE
 
 
+@pytest.mark.parametrize("effect", sorted(EFFECTS))
+@pytest.mark.parametrize("kind", ["backlash", "backlash_inverse"])
+def test_a_model_with_effects_normalised_gives_the_same_output(effect, kind):
+    """Eqs. (4a-c) with effects: F's scale (S^a = 2) and G's gain (3) move into h, a friction's
+    levels and a hysteresis's width into the normalised units; the output stays the same."""
+    plant = {**_plant(effect, BRANCHES[effect]), "linear": {"num": [6.0], "den": [1.0, 3.0, 2.0]}}
+    plant["input_nonlinearity"] = {**plant["input_nonlinearity"], "type": kind, "slope_up": 2.0, "slope_down": 1.5}
+    model = from_config(config.parse_plant(plant, "test"))
+    t = np.arange(0, 40, DT)
+    u = np.r_[np.zeros(50), 1.1 * np.sin(0.6 * t) + 0.2 * np.sign(np.sin(2.1 * t))]
+    x = model.simulate(u, DT).x
+    assert np.max(np.abs(model.normalised().simulate(u, DT).x - x)) < 1e-9 * max(1.0, np.max(np.abs(x)))
+
+
 def _cli(argv, capsys) -> tuple[int, str]:
     with pytest.raises(SystemExit) as exc:
         main([str(a) for a in argv])
