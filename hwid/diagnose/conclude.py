@@ -454,6 +454,7 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
         other = rank.fit_all(alternative, available, echo=echo)
         for c in other:     # fitted on another baseline than ``fitter``'s: not confirmed with it
             c.stripped = True
+            c.own_fitter = alternative      # whose model its prediction is (hwid.diagnose.corrected)
         free = min(free, alternative.best_effect_free(other)[0])
         cands = alternative_baseline(cands, other, min(gap_ref, free), floor.sigma, fitter.n_eff)
     if free < gap_ref:

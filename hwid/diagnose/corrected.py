@@ -40,6 +40,7 @@ def corrected(verdict, fitter, sim_model: HWModel) -> tuple[HWModel, bool]:
     if not isinstance(verdict, Candidate) or verdict.fitted is None or verdict.fitted.disturbance:
         return _with_actuator_as_effects(sim_model), False
     eff, theta = verdict.fitted, np.asarray(verdict.theta, float)
+    fitter = _fitter_of(verdict, fitter)
     if fitter.refit_h:
         F, G, h, own = fitter.refit_blocks(eff, theta)
         base = HWModel(F, G, h, sim_model.actuator, sim_model.effects)
@@ -49,6 +50,12 @@ def corrected(verdict, fitter, sim_model: HWModel) -> tuple[HWModel, bool]:
         base = base.without_actuator()
     base = _with_actuator_as_effects(base)
     return replace(base, effects=base.effects + (eff.spec(own),)), True
+
+
+def _fitter_of(verdict, fitter):
+    """The fitter whose baseline the verdict was fitted on: ``fitter``, or the one with the
+    identified G's own modes taken out (:func:`hwid.diagnose.conclude.fit_effects`)."""
+    return getattr(verdict, "own_fitter", None) or fitter
 
 
 def _with_actuator_as_effects(model: HWModel) -> HWModel:
@@ -66,7 +73,7 @@ def starts_after(verdict, fitter) -> dict[int, dict] | None:
     without a deterministic verdict."""
     if not isinstance(verdict, Candidate) or verdict.fitted is None or verdict.fitted.disturbance:
         return None
-    preds, seen = fitter.noted_predictions(verdict.fitted, verdict.theta)
+    preds, seen = _fitter_of(verdict, fitter).noted_predictions(verdict.fitted, verdict.theta)
     share = float(verdict.params.get("carried", 0.0)) if verdict.effect == "rate_limit" else 0.0
     out = {}
     for i, pred in enumerate(preds):
