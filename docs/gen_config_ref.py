@@ -28,7 +28,9 @@ Generated from the schema in `hwid/config.py` by `docs/gen_config_ref.py` (do no
 twice is an error, and every failure is one line `FILE: key.path: reason` with exit code 2;
 `hwid check CONFIG` validates a file without running anything.
 
-A key under a list is written `key[]` (one entry per list item). `required` means the key must be
+A key under a list is written `key[]` (one entry per list item); under a list whose items are one
+of several kinds, `key[KIND]` (`plant.effects[rate_limit].rate` is the `rate` of an entry
+`{effect: rate_limit, ...}`). `required` means the key must be
 given when its parent is; the plant kinds' own rules (which parts each kind needs) are in
 [Plant kinds](../guide/plants.md).
 
@@ -98,6 +100,8 @@ def _type(ann) -> str:
         return f"{base} ({', '.join(checks)})" if checks else base
     if origin is Literal:
         return "string"
+    if origin is Union and all(isinstance(a, type) and issubclass(a, BaseModel) for a in args):
+        return "mapping, one of the kinds below"
     if origin is Union:
         parts = [_type(a) for a in args if a is not type(None)]
         text = " or ".join(parts)
@@ -106,6 +110,7 @@ def _type(ann) -> str:
         return f"list of {_type(args[0])}"
     if isinstance(ann, type) and issubclass(ann, BaseModel):
         return "mapping"
+
     return {float: "number", int: "integer", str: "string", bool: "boolean"}.get(ann, str(ann))
 
 
@@ -145,9 +150,19 @@ def keys(model: type[BaseModel] | None = None, prefix: str = "") -> list[Key]:
         checks = _checks(field.metadata)
         kind = _type(ann) + (f" ({', '.join(checks)})" if checks else "")
         out.append(Key(path, kind, _default(field), _allowed(ann), (field.description or "").strip()))
-        for sub in _models(ann):
-            out += keys(sub, f"{path}[]." if _is_list_of_models(ann) else f"{path}.")
+        subs = _models(ann)
+        for sub in subs:
+            tag = _tag(sub) if len(subs) > 1 else ""
+            out += keys(sub, f"{path}[{tag}]." if _is_list_of_models(ann) else f"{path}.")
     return out
+
+
+def _tag(model: type[BaseModel]) -> str:
+    """The value that picks ``model`` out of a union of mappings (its first key's one allowed
+    value: ``effect: rate_limit``), written in the path as ``effects[rate_limit]``."""
+    first = next(iter(model.model_fields.values()))
+    values = typing.get_args(first.annotation) if typing.get_origin(first.annotation) is Literal else ()
+    return str(values[0]) if len(values) == 1 else model.__name__
 
 
 def render() -> str:

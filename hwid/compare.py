@@ -89,8 +89,9 @@ def initial_state(model: HWModel, u, y, dt: float, grid: int = 9) -> tuple[float
     (least squares: a ``grid x grid`` search, then Powell within the bounds). Returns
     ``(gear, rest, y_hat)``."""
     u, y = np.asarray(u, float), np.asarray(y, float)
-    lo, hi = model.input.start_band(u)
-    v_all = model.input.apply(u)
+    F, u_gear = model.at_the_gear(u, dt)       # the gear's band from what it receives (after a clip, a dead zone)
+    lo, hi = F.start_band(u_gear)
+    v_all = F.apply(u_gear)
     span = max(float(np.ptp(v_all)), hi - lo, 1e-9)
     rest_lo, rest_hi = float(v_all.min()) - 0.5 * span, float(v_all.max()) + 0.5 * span
 

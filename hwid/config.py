@@ -19,9 +19,10 @@ from typing import Annotated, Any, Literal, Optional, Union
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from hwid import HwidError
+from hwid.config_effects import EFFECT_MODELS, EffectCfg, refuse_drift
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 Pos = Annotated[float, Field(gt=0, allow_inf_nan=False)]
@@ -206,6 +207,11 @@ class PlantCfg(_Strict):
     linear: Optional[LinearCfg] = Field(default=None, description="G(s) (hammerstein_wiener only).")
     output_nonlinearity: Optional[OutputNonlinearityCfg] = Field(
         default=None, description="h (hammerstein_wiener only).")
+    effects: Optional[list[EffectCfg]] = Field(
+        default=None, description="hammerstein_wiener only: catalogue effects the plant carries at their blocks of "
+                                  "the chain, each `{effect: NAME, PARAMETER: value, ...}` with the names hwid "
+                                  "diagnose reports (drift cannot be simulated); a diagnosis's corrected.yaml "
+                                  "writes them.")
     noise: NoiseCfg = Field(default=NoiseCfg(), description="The output noise xi(t) of a simulated plant.")
     callable: Optional[str] = Field(
         default=None, pattern=r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$",
@@ -218,8 +224,12 @@ class PlantCfg(_Strict):
     experiments: Optional[list[RecordedExperimentCfg]] = Field(
         default=None, min_length=1, description="recorded only: the files, one entry each.")
 
+    _no_drift = field_validator("effects", mode="before")(refuse_drift)
+
     @model_validator(mode="after")
     def _kind(self):
+        if self.effects is not None and self.kind != "hammerstein_wiener":
+            raise ValueError("'effects' are only for kind: hammerstein_wiener")
         if self.kind == "recorded":
             if self.experiments is None:
                 raise ValueError("a recorded plant needs experiments: a list of files with their input and output columns")
@@ -494,14 +504,30 @@ def _misspelt_instead(errors) -> dict | None:
     return None
 
 
+def _untagged(loc: tuple) -> tuple[tuple, Optional[type[BaseModel]]]:
+    """``loc`` without the effect's name pydantic puts after an entry of ``effects`` (its tag), and
+    that effect's schema (None where there is none)."""
+    for i in range(2, len(loc)):
+        if loc[i - 2] == "effects" and isinstance(loc[i - 1], int) and loc[i] in EFFECT_MODELS:
+            return loc[:i] + loc[i + 1:], EFFECT_MODELS[loc[i]]
+    return loc, None
+
+
 def _describe(e: dict) -> tuple[str, str]:
     loc = tuple(e["loc"])
     # strip pydantic's union/validator tags such as 'function-after[...]'
     loc = tuple(p for p in loc if not (isinstance(p, str) and ("[" in p and "]" in p and "function" in p)))
+    loc, effect_model = _untagged(loc)
     kind = e["type"]
+    if kind == "union_tag_invalid":
+        tag = str((e.get("ctx") or {}).get("tag", ""))
+        close = difflib.get_close_matches(tag, list(EFFECT_MODELS), n=1, cutoff=0.5)
+        hint = f"did you mean '{close[0]}'? " if close else ""
+        return _loc(loc), f"unknown effect {tag!r} ({hint}the effects a plant can carry: {', '.join(EFFECT_MODELS)})"
     if kind == "extra_forbidden":
         key = loc[-1]
-        owner = _model_at(loc[:-1])
+        owner = effect_model if effect_model is not None and len(loc) >= 2 and isinstance(loc[-2], int) \
+            else _model_at(loc[:-1])
         hint = ""
         if owner is not None:
             close = difflib.get_close_matches(str(key), _valid_keys(owner), n=1, cutoff=0.5)

@@ -22,6 +22,7 @@ import numpy as np
 
 from hwid.blocks import backlash as bl
 from hwid.blocks.chain import run_chain
+from hwid.blocks.effects import EffectSpec, at_the_gear, run_chain_with_effects, scaled_for_normalisation
 from hwid.blocks.linear import LinearBlock, discretise, unit_rest
 from hwid.blocks.static import PiecewiseH, PolynomialH
 
@@ -167,6 +168,18 @@ class Actuator:
         return {"clip": None if self.clip is None else list(self.clip), "rate": self.rate,
                 "deadzone": float(self.deadzone), "carried": bool(self.carried)}
 
+    def as_effects(self) -> tuple[EffectSpec, ...]:
+        """The same actuator as catalogue effects (``input_saturation``, ``rate_limit``,
+        ``input_deadzone``, in the actuator's order): how a model file writes it."""
+        out = []
+        if self.clip is not None:
+            out.append(EffectSpec.of("input_saturation", u_lo=self.clip[0], u_hi=self.clip[1]))
+        if self.rate is not None:
+            out.append(EffectSpec.of("rate_limit", rate=self.rate, carried=1.0 if self.carried else 0.0))
+        if self.deadzone:
+            out.append(EffectSpec.of("input_deadzone", delta=self.deadzone, absorbed=0.0))
+        return tuple(out)
+
     @classmethod
     def from_dict(cls, d: dict | None) -> "Actuator | None":
         """Inverse of :meth:`to_dict`; None for None or an empty actuator."""
@@ -196,21 +209,30 @@ class Signals:
 @dataclass(frozen=True)
 class HWModel:
     """A complete (F, G, h) model; ``normalised()`` gives the representative of eqs. (4a-c).
-    ``actuator``: the blocks ahead of F where one was fitted (:class:`Actuator`), else None."""
+    ``actuator``: the blocks ahead of F where one was fitted (:class:`Actuator`), else None.
+    ``effects``: catalogue effects at their blocks of the chain (:class:`hwid.blocks.effects.EffectSpec`;
+    the config's ``plant.effects``, a diagnosis's ``corrected.yaml``), after the actuator."""
 
     input: InputNonlinearity
     linear: LinearBlock
     output: PolynomialH | PiecewiseH
     actuator: Actuator | None = None
+    effects: tuple[EffectSpec, ...] = ()
+
+    def __post_init__(self):
+        object.__setattr__(self, "effects", tuple(self.effects))
 
     def normalised(self) -> "HWModel":
         """The representative of eqs. (4a-c); the actuator acts on the command, ahead of F's scale,
-        and is kept as it is."""
+        and is kept as it is; the effects in the normalised units
+        (:func:`hwid.blocks.effects.scaled_for_normalisation`)."""
         k = self.input.scale * self.linear.dc_gain
-        return HWModel(self.input.normalised(), self.linear.normalised(), self.output.scaled(k), self.actuator)
+        effects = tuple(scaled_for_normalisation(e, self.input.scale, k) for e in self.effects)
+        return HWModel(self.input.normalised(), self.linear.normalised(), self.output.scaled(k), self.actuator,
+                       effects)
 
     def without_actuator(self) -> "HWModel":
-        """F, G and h alone (the paper's chain)."""
+        """The model without its actuator (F, G and h alone where it carries no effects)."""
         return replace(self, actuator=None)
 
     def actuate(self, u, dt: float, position: float | None = None) -> np.ndarray:
@@ -221,14 +243,23 @@ class HWModel:
 
     def simulate(self, u, dt: float, gear: float | None = None, rest: float | None = None,
                  noise_rng: np.random.Generator | None = None, noise_std: float = 0.0,
-                 position: float | None = None) -> Signals:
+                 position: float | None = None, ringing: dict | None = None) -> Signals:
         """The chain of eqs. (3a-c) on a sampled input, behind the actuator where the model has one
         (``u`` through :meth:`Actuator.apply` first, its slew from ``position``): ``v = F[u]`` from the gear state
         ``gear`` (None: the operator's default start at ``u[0]``), ``w`` the exact ZOH response of
         G from rest at the input level ``rest`` (None: the equilibrium of ``v[0]``), ``x = h(w)``.
         With ``noise_rng``, also ``y = x + xi``, xi white with standard deviation ``noise_std``:
         bit-identical to ``x + noise_std * noise_rng.standard_normal(n)``, drawn in the chain's own
-        pass where it is fused. Every simulation of a model in hwid runs here."""
+        pass where it is fused. Every simulation of a model in hwid runs here.
+
+        With ``effects``, the chain runs them at their blocks
+        (:func:`hwid.blocks.effects.run_chain_with_effects`: ``w`` is G's output, ``x`` the output
+        through every effect; ``position`` is also where a rate limit that carries its position
+        over starts). ``ringing``: a free response of G's modes from a given sample on, added to G's
+        output (a record started with a mode still ringing, :func:`hwid.blocks.effects.with_ringing`).
+        """
+        if self.effects or ringing:
+            return self._with_effects(u, dt, gear, rest, noise_rng, noise_std, position, ringing)
         u = self.actuate(u, dt, position)
         fused = self._fused(u, dt, gear, rest, noise_rng, float(noise_std))
         if fused is not None:
@@ -236,6 +267,20 @@ class HWModel:
         v = self.input.apply(u, gear)
         w = self.linear.simulate(v, dt, rest)
         x = self.output(w)
+        y = None if noise_rng is None else x + noise_std * noise_rng.standard_normal(u.size)
+        return Signals(v, w, x, float(v[-1]) if v.size else gear, y)
+
+    def at_the_gear(self, u, dt: float) -> tuple[InputNonlinearity, np.ndarray]:
+        """F as the model's effects leave it and the input it receives on the command ``u``
+        (through the actuator and the input effects, :func:`hwid.blocks.effects.at_the_gear`)."""
+        u = self.actuate(u, dt)
+        return at_the_gear(self.input, self.effects, u, dt) if self.effects else (self.input, u)
+
+    def _with_effects(self, u, dt, gear, rest, noise_rng, noise_std, position, ringing) -> Signals:
+        """:meth:`simulate` with the model's effects (the three-pass chain, never the fused one)."""
+        u = self.actuate(u, dt, position if self.actuator is not None else None)
+        v, w, x = run_chain_with_effects(self.input, self.linear, self.output, self.effects, u, dt, gear, rest,
+                                         position, ringing)
         y = None if noise_rng is None else x + noise_std * noise_rng.standard_normal(u.size)
         return Signals(v, w, x, float(v[-1]) if v.size else gear, y)
 
@@ -284,6 +329,8 @@ class HWModel:
              "output_nonlinearity": self.output.to_dict()}
         if self.actuator is not None:
             d["actuator"] = self.actuator.to_dict()
+        if self.effects:
+            d["effects"] = [e.to_dict() for e in self.effects]
         return d
 
 
@@ -299,5 +346,8 @@ def from_config(plant_cfg) -> HWModel:
                        tuple(tuple(float(c) for c in p.polynomial) for p in on.pieces))
     num = np.trim_zeros(np.asarray(lin.num, float), "f")
     den = np.trim_zeros(np.asarray(lin.den, float), "f")
+    effects = tuple(EffectSpec(e.effect, tuple((k, v) for k, v in e.model_dump().items()
+                                               if k != "effect" and v is not None))
+                    for e in (getattr(plant_cfg, "effects", None) or ()))
     return HWModel(InputNonlinearity(f.type, f.slope_up, f.slope_down, f.d_plus, f.d_minus),
-                   LinearBlock(tuple(num.tolist()), tuple(den.tolist()), float(lin.delay)), h)
+                   LinearBlock(tuple(num.tolist()), tuple(den.tolist()), float(lin.delay)), h, None, effects)

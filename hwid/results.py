@@ -318,6 +318,20 @@ def write_json(path: str | Path, data: dict) -> None:
     os.replace(tmp, path)
 
 
+def write_text(path: str | Path, text: str) -> Path:
+    """Atomic text write (a model file such as a diagnosis's ``corrected.yaml``): ``PATH.tmp``,
+    flushed to disk, then renamed over ``PATH``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w", encoding="utf-8") as fh:
+        fh.write(text)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+    return path
+
+
 def _json_default(o):
     if isinstance(o, (np.ndarray, np.generic)):
         return plain(o)
@@ -423,7 +437,9 @@ def write_diagnosis(path: str | Path, cfg, summary: dict, experiments: list[dict
     """Write ``diagnosis.h5`` (``hwid_kind = "diagnosis"``): the JSON summary as the root attribute
     ``summary``, and one group per experiment in the order run (root attribute
     ``experiment_order``) with datasets ``u, y, y_model, mask, region`` and, where present, ``z``
-    and ``y_after`` (validation experiments), attributes ``dt, kind, role, repeat_of, variable``."""
+    and ``y_after`` (validation experiments), attributes ``dt, kind, role, repeat_of, variable`` and,
+    where the verdict's effect is in ``corrected.yaml``, ``start_after`` (JSON: the ``gear``,
+    ``rest`` and ``position`` that model starts from to give ``y_after``)."""
     path = Path(path)
     with atomic_h5(path) as f:
         write_provenance(f, "diagnosis", cfg)
@@ -441,6 +457,8 @@ def write_diagnosis(path: str | Path, cfg, summary: dict, experiments: list[dict
             h.attrs["role"] = e["role"]
             h.attrs["repeat_of"] = e.get("repeat_of") or ""
             h.attrs["variable"] = json.dumps(e["variable"])
+            if e.get("start_after") is not None:
+                h.attrs["start_after"] = json.dumps(e["start_after"])
         f.attrs["experiment_order"] = json.dumps([e["name"] for e in experiments])
     return path
 
@@ -448,7 +466,7 @@ def write_diagnosis(path: str | Path, cfg, summary: dict, experiments: list[dict
 def read_diagnosis(path: str | Path) -> dict:
     """Plain data of ``diagnosis.h5``: ``summary`` (the JSON summary) and ``experiments``, a dict
     name -> {t, u, y, y_model, y_after (validation only), z, mask, region, dt, kind, role,
-    repeat_of, variable}, in the order they were run."""
+    repeat_of, variable, start_after (where written)}, in the order they were run."""
     path = Path(path)
     with open_results(path, "diagnosis") as f:
         try:
@@ -464,6 +482,8 @@ def read_diagnosis(path: str | Path) -> dict:
                 e.update({"dt": dt, "kind": str(g.attrs["kind"]), "role": str(g.attrs["role"]),
                           "repeat_of": str(g.attrs["repeat_of"]) or None,
                           "variable": json.loads(g.attrs["variable"])})
+                if "start_after" in g.attrs:
+                    e["start_after"] = json.loads(g.attrs["start_after"])
                 exps[name] = e
         except (KeyError, ValueError, OSError, TypeError) as err:
             raise ResultsError(f"{path}: not a complete diagnosis ({type(err).__name__}: {err})") from None

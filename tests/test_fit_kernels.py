@@ -8,7 +8,7 @@ import pytest
 from hwid.blocks.linear import LinearBlock
 from hwid.blocks.static import legendre_vander
 from hwid.diagnose.effects import CurvedBorders
-from hwid.diagnose.modelsim import first_order
+from hwid.blocks.effects import first_order
 from hwid.threads import forked_map
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from hwid import HwidError
-from hwid.diagnose import confirm, findings, gap, rank, residual_structure
+from hwid.diagnose import confirm, corrected, findings, gap, rank, residual_structure
 from hwid.diagnose.baseline import has_outside_modes
 from hwid.diagnose.context import Context, Validation, sine_band
 from hwid.diagnose.effects import CATALOGUE, catalogue
@@ -320,8 +320,9 @@ def write_result(ctx: Context, gaps: Gaps, cands, drift_ok: bool, by_effect, d: 
     if ctx.extra is not None:
         ctx.extra(gaps.fitter, cands, d.verdict, d.groups, summary)
     summary["cost"]["seconds_total"] = time.perf_counter() - ctx.t_start
+    starts = corrected.write_for(ctx.out, d.verdict, gaps.fitter, ctx.sim_model, summary, ctx.echo)
     findings.write_h5(ctx.out / "diagnosis.h5", ctx.cfg, summary, ctx.val,
-                      findings.result_after(d.verdict, ctx.val, gaps.res_before))
+                      findings.result_after(d.verdict, ctx.val, gaps.res_before), starts)
     write_json(Path(ctx.json_path) if ctx.json_path else ctx.out / "diagnosis.json", summary)
     verdict_name, explained = summary["verdict"]["effect"], summary["verdict"]["explained_fraction"]
     alike = summary["verdict"].get("indistinguishable_from") or []
@@ -453,6 +454,7 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
         other = rank.fit_all(alternative, available, echo=echo)
         for c in other:     # fitted on another baseline than ``fitter``'s: not confirmed with it
             c.stripped = True
+            c.own_fitter = alternative      # whose model its prediction is (hwid.diagnose.corrected)
         free = min(free, alternative.best_effect_free(other)[0])
         cands = alternative_baseline(cands, other, min(gap_ref, free), floor.sigma, fitter.n_eff)
     if free < gap_ref:

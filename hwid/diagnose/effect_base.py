@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hwid.blocks.effects import EffectSpec
 from hwid.diagnose.modelsim import ModelSim
 
 
@@ -112,6 +113,15 @@ class Effect:
 
     def simulate(self, sim: ModelSim, theta, i: int) -> np.ndarray:
         raise NotImplementedError
+
+    def spec(self, theta) -> EffectSpec | None:
+        """The effect at ``theta`` as a model carries it (:class:`hwid.blocks.effects.EffectSpec`),
+        the parameters named as the diagnosis reports them; None for a disturbance, which no model
+        simulates from its input alone."""
+        if self.disturbance:
+            return None
+        extra = self.spec_params() if hasattr(self, "spec_params") else {}
+        return EffectSpec(self.name, tuple(zip(self.params, map(float, theta))) + tuple(extra.items()))
 
     def log_params(self) -> tuple[bool, ...]:
         """Which parameters are fitted on a log scale."""

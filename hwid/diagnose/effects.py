@@ -20,14 +20,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from hwid.blocks.linear import LinearBlock
+from hwid.blocks import effects as maps
 from hwid.blocks.deadzone import deadzone
 from hwid.blocks.slew import slewed
 from hwid.diagnose.effect_base import Effect, Scale  # noqa: F401  (Scale: the catalogue's sizes)
 from hwid.diagnose.effect_base import grid as _grid
 from hwid.diagnose.effects_after_gear import effects_after_gear
-from hwid.diagnose.modelsim import direction_arrays, play_arrays, since_crossed, first_order, smooth
-from hwid.model import InputNonlinearity
+from hwid.diagnose.modelsim import since_crossed, smooth
 
 CATALOGUE = ("input_saturation", "rate_limit", "input_deadzone", "curved_borders", "time_delay",
              "resonance", "sensor_lag", "sensor_saturation", "drift", "friction", "output_hysteresis")
@@ -105,10 +104,12 @@ class RateLimit(Effect):
         # remembered)
         act = slewed(np.concatenate([prev, u]), theta[0], sim.dt)
         call = act[prev.size:]
+        sim.note_start(i, position=float(act[prev.size - 1]))
         g0 = sim.gear_start(call, i)
         if g0 is not None:
             carried = sim.from_v(sim.model.input.apply(call, g0))
         else:
+            sim.note_start(i, carried_from_tail=True)     # the chain run through the tail: no (gear, rest) start
             k = max(sim.lead_samples(i), since_crossed(act[:prev.size], sim.model.input))
             carried = sim.from_input(act[prev.size - k:])[k:]
         return fresh + c * (carried - fresh)
@@ -141,15 +142,8 @@ class InputDeadzone(Effect):
         return _grid(np.linspace(0, hi[0], 10)[1:], [0.0, 1.0])
 
     def simulate(self, sim, theta, i):
-        F = sim.model.input
         delta, a = float(theta[0]), float(theta[1])
-        kp = 1.0 if F.type == "backlash" else 1.0 / F.slope_up
-        km = 1.0 if F.type == "backlash" else 1.0 / F.slope_down
-        dp, dm = F.d_plus - a * kp * delta, F.d_minus + a * km * delta
-        if dp <= dm:
-            dp = dm = 0.5 * (dp + dm)
-            dp += 1e-9
-        F2 = InputNonlinearity(F.type, F.slope_up, F.slope_down, dp, dm)
+        F2 = maps.deadzone_borders(sim.model.input, delta, a)
         return sim.from_input(sim.actuate(i, lambda u: deadzone(u, delta)), F2, i)
 
 
@@ -178,9 +172,7 @@ class CurvedBorders(Effect):
 
     def __init__(self, degree: int = 2, play: bool = False):
         k = int(degree)
-        super().__init__("curved_borders", "input",
-                         ("c0",) + tuple(f"c{j}_{side}" for side in ("up", "down") for j in range(1, k + 1))
-                         + (("play",) if play else ()),
+        super().__init__("curved_borders", "input", maps.curve_params(k, play),
                          "the borders of F are curves instead of straight lines", interacts=("d_plus", "d_minus"))
         object.__setattr__(self, "degree", k)
         object.__setattr__(self, "play", bool(play))
@@ -240,14 +232,7 @@ class CurvedBorders(Effect):
         hit = cache.get(id(u))
         if hit is not None and hit[0] is u:
             return hit[1]
-        leg = np.polynomial.legendre
-        sc, (a, b), k = self._scale, self._fit_span, self.degree
-        s = (np.asarray(u, float) - sc[0]) / sc[1]
-        B = leg.legvander(np.clip(s, a, b), k)
-        for end, beyond in ((a, np.minimum(s - a, 0.0)), (b, np.maximum(s - b, 0.0))):
-            if np.isfinite(end):
-                slopes = np.array([leg.legval(end, leg.legder(np.eye(k + 1)[j])) for j in range(k + 1)])
-                B = B + np.outer(beyond, slopes)
+        B = maps.bend_basis(u, self.degree, self._scale[0], self._scale[1], self._fit_span)
         cache[id(u)] = (u, B)
         return B
 
@@ -256,24 +241,22 @@ class CurvedBorders(Effect):
         return {k: v for k, v in self.__dict__.items() if k != "_bases"}
 
     def simulate(self, sim, theta, i):
-        F = sim.model.input
         u = sim.inputs[i]
-        sc = self._scale
-        th = np.asarray(theta, float)
-        k = self.degree
-        wider = th[1 + 2 * k] if self.play else 0.0
-        c_up, c_dn = np.r_[th[0] - wider, th[1:1 + k]], np.r_[th[0] + wider, th[1 + k:1 + 2 * k]]
-        B = self._bend_basis(u)
-        if F.type == "backlash":
-            up = F.ascending(u) + F.slope_up * sc[1] * (B @ c_up)
-            dn = F.descending(u) + F.slope_down * sc[1] * (B @ c_dn)
-            v0 = float(np.clip(0.0, up[0], dn[0])) if dn[0] >= up[0] else 0.5 * (up[0] + dn[0])
-            v = play_arrays(np.ascontiguousarray(up), np.ascontiguousarray(np.maximum(dn, up)), v0)
-        else:
-            up = F.ascending(u) + sc[1] / F.slope_up * (B @ c_up)
-            dn = F.descending(u) + sc[1] / F.slope_down * (B @ c_dn)
-            v = direction_arrays(u, np.ascontiguousarray(up), np.ascontiguousarray(dn), 0.5 * (up[0] + dn[0]))
+        v = maps.curved_output(sim.model.input, u, self._bend_basis(u), theta, self.degree, self.play, self._scale[1])
         return sim.from_v(v)
+
+    def spec_params(self) -> dict:
+        """The input scaling a model carrying the bend needs beside its fitted terms
+        (:class:`hwid.blocks.effects.EffectSpec`): the centre and half-width of the input range the
+        Legendre polynomials are scaled to, and the fit experiments' range beyond which the bend
+        goes on along its tangent (left out where unbounded)."""
+        (c, half), (a, b) = self._scale, self._fit_span
+        out = {"u_centre": float(c), "u_half_width": float(half)}
+        if np.isfinite(a):
+            out["fit_lo"] = float(c + a * half)
+        if np.isfinite(b):
+            out["fit_hi"] = float(c + b * half)
+        return out
 
     _scale = (0.0, 1.0)              # centre and half-width of the input range: s = (u - centre) / half-width
     _fit_span = (-np.inf, np.inf)    # the fit experiments' input range in s
@@ -308,8 +291,7 @@ class TimeDelay(Effect):
         return [np.array([d]) for d in np.linspace(0, hi, 21)[1:]]
 
     def simulate(self, sim, theta, i):
-        G = sim.model.linear
-        return sim.from_v(sim.v[i], LinearBlock(G.num, G.den, G.delay + max(float(theta[0]), 0.0)))
+        return sim.from_v(sim.v[i], maps.delayed(sim.model.linear, float(theta[0])))
 
 
 # a complex pole pair is a lightly damped mode below this damping ratio (a resonant peak of |G| of
@@ -340,13 +322,9 @@ class Resonance(Effect):
         return float(theta[1]) >= 0.97 * ZETA_LIGHT
 
     def simulate(self, sim, theta, i):
-        G = sim.model.linear
         wn, z = float(theta[0]), float(theta[1])
-        # np.polymul's product without its poly1d objects (6 % of a profiled serial diagnosis)
-        den = np.convolve(G.den, [1.0, 2 * z * wn, wn * wn])
-        num = np.convolve(G.num, [wn * wn])
-        mode = np.roots([1.0, 2 * z * wn, wn * wn])     # its own, which may ring past the lead-in
-        return sim.from_v(sim.v[i], LinearBlock(tuple(num), tuple(den), G.delay), i, ringing=mode)
+        # its own mode, which may ring past the lead-in
+        return sim.from_v(sim.v[i], maps.with_mode(sim.model.linear, wn, z), i, ringing=maps.mode_poles(wn, z))
 
 
 class SensorLag(Effect):
@@ -373,21 +351,15 @@ class SensorLag(Effect):
         return self._before_filter(sim_w, theta, i)
 
     def post(self, x, theta, dt):
-        return first_order(x, float(theta[0]), dt)
+        return maps.first_order(x, float(theta[0]), dt)
 
     def simulate(self, sim, theta, i):
-        return first_order(self._before_filter(sim, theta, i), float(theta[0]), sim.dt)
+        return maps.first_order(self._before_filter(sim, theta, i), float(theta[0]), sim.dt)
 
     def _before_filter(self, sim, theta, i):
-        tau, a = float(theta[0]), float(theta[1])
-        if a > 0:
-            G = sim.model.linear
-            num = np.convolve(G.num, [a * tau, 1.0])
-            # a biproper G cannot give up a lag: keep it as it is
-            x = sim.from_v(sim.v[i], LinearBlock(tuple(num), G.den, G.delay)) if num.size <= len(G.den) else sim.x[i]
-        else:
-            x = sim.x[i]
-        return x
+        # a biproper G cannot give up a lag: kept as it is
+        G = maps.lag_given_up(sim.model.linear, float(theta[0]), float(theta[1]))
+        return sim.x[i] if G is None else sim.from_v(sim.v[i], G)
 
 
 class SensorSaturation(Effect):

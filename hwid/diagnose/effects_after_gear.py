@@ -10,46 +10,9 @@ like the other nine, its bounds and starting points scaled from the experiments 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from hwid.blocks.effects import HYSTERESIS_PLAYS, dahl_state, friction_drive, hysteresis, play_sum  # noqa: F401
 from hwid.diagnose.effect_base import Effect, Scale, grid
-
-
-@njit(cache=True)
-def dahl_state(x, x_pre):
-    """The normalised Dahl friction state ``z`` (in [-1, 1]) along the path ``x``.
-
-    Dahl's law with exponent 1, ``dz/dx = (1 - z sgn(dx)) / x_pre``, solved exactly over each
-    sample's move: ``z <- s + (z - s) exp(-|dx| / x_pre)``, ``s = sgn(dx)``, so ``z`` depends on the
-    path only, never on how fast it was travelled. Starts at ``z = 0``."""
-    out = np.empty_like(x)
-    z = 0.0
-    for k in range(x.shape[0]):
-        if k > 0:
-            dx = x[k] - x[k - 1]
-            if dx > 0.0:
-                z = 1.0 + (z - 1.0) * np.exp(-dx / x_pre)
-            elif dx < 0.0:
-                z = -1.0 + (z + 1.0) * np.exp(dx / x_pre)
-        out[k] = z
-    return out
-
-
-@njit(cache=True)
-def play_sum(x, width, n_plays):
-    """The mean of ``n_plays`` play operators of half-widths ``width k / n_plays`` (k = 1..n) on
-    ``x``, each started at ``x[0]``: a Prandtl-Ishlinskii operator of uniform threshold density."""
-    out = np.zeros_like(x)
-    for j in range(1, n_plays + 1):
-        r = width * j / n_plays
-        p = x[0]
-        for k in range(x.shape[0]):
-            if p < x[k] - r:
-                p = x[k] - r
-            elif p > x[k] + r:
-                p = x[k] + r
-            out[k] += p
-    return out / n_plays
 
 
 class Friction(Effect):
@@ -113,11 +76,7 @@ class Friction(Effect):
 
     def drive(self, v, theta, dt: float) -> np.ndarray:
         """G's input: ``v`` with the friction force added."""
-        c, xp, b = (float(t) for t in theta)
-        out = v + c * dahl_state(np.ascontiguousarray(v, dtype=np.float64), max(xp, 1e-300))
-        if b != 0.0 and v.size > 1:
-            out = out + b * np.diff(v, prepend=v[0]) / dt
-        return out
+        return friction_drive(v, *(float(t) for t in theta), dt)
 
     def simulate(self, sim, theta, i):
         return sim.from_v(self.drive(sim.v[i], theta, sim.dt))
@@ -139,7 +98,7 @@ class OutputHysteresis(Effect):
 
     #: the plays summed; with 4 the loop's branches are within 1/16 of the width of the smooth
     #: uniform-density limit
-    N_PLAYS = 4
+    N_PLAYS = HYSTERESIS_PLAYS
 
     def __init__(self):
         super().__init__("output_hysteresis", "output", ("width", "weight"),
@@ -158,9 +117,7 @@ class OutputHysteresis(Effect):
         return grid(np.geomspace(lo[0], hi[0], 8), [0.3, 1.0])
 
     def hysteresis(self, w, theta) -> np.ndarray:
-        width, a = float(theta[0]), float(theta[1])
-        w = np.ascontiguousarray(w, dtype=np.float64)
-        return (1.0 - a) * w + a * play_sum(w, max(width, 0.0), self.N_PLAYS)
+        return hysteresis(w, float(theta[0]), float(theta[1]))
 
     def simulate(self, sim, theta, i):
         return sim.model.output(self.hysteresis(sim.w[i], theta))

@@ -101,15 +101,18 @@ def per_experiment(exps, res_before, res_after, sigma) -> list[dict]:
     return out
 
 
-def write_h5(path, cfg, summary, val, res_after) -> None:
+def write_h5(path, cfg, summary, val, res_after, starts=None) -> None:
     """``diagnosis.h5`` through :func:`hwid.results.write_diagnosis`: each experiment's input, the
     plant's output, the model's (before) and, for validation experiments, the model's with the
-    leading effect added (after)."""
+    leading effect added (after) and, with ``starts`` (:func:`hwid.diagnose.corrected.starts_after`),
+    where ``corrected.yaml``'s model starts to give it."""
+    starts = starts or {}
+    start_of = {i: starts.get(j) for j, i in enumerate(val.val_idx)}
     x_model = {i: val.sim_fit.x[j] for j, i in enumerate(val.fit_idx)}
     x_model.update({i: val.sim_val.x[j] for j, i in enumerate(val.val_idx)})
     after = {i: val.records[i].y - res_after[j] for j, i in enumerate(val.val_idx)}
     rows = [{"name": e.name, "u": r.u, "y": r.y, "y_model": x_model[i], "mask": e.mask, "region": e.region,
              "z": e.z, "y_after": after.get(i), "dt": r.dt, "kind": e.kind, "role": e.role,
-             "repeat_of": e.repeat_of, "variable": e.variable}
+             "repeat_of": e.repeat_of, "variable": e.variable, "start_after": start_of.get(i)}
             for i, (e, r) in enumerate(zip(val.exps, val.records))]
     write_diagnosis(path, cfg, summary, rows)

@@ -17,7 +17,7 @@ from hwid.diagnose.context import Context, Validation, drift_additivity, scale_o
 from hwid.diagnose.effects import catalogue
 from hwid.diagnose.modelsim import ModelSim
 from hwid.diagnose.next_experiment import AFTER_GEAR, propose, propose_against_play
-from hwid.diagnose.sim_side import load_model
+from hwid.diagnose.sim_side import check_diagnosable, load_model
 from hwid.identify.split import plan
 from hwid.recorded import load_records
 
@@ -32,6 +32,7 @@ def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effe
     parts, how = plan(records)
     if model is not None:
         sim_model, origin = load_model(model, echo=echo)
+        check_diagnosable(sim_model, origin, cfg.sampling.dt)
     else:
         sim_model, origin = logs.identify_from_logs(cfg, records, out, echo)
     seconds_model = time.perf_counter() - t_start

@@ -94,6 +94,44 @@ class HRefit:
         return out
 
 
+    def noted_predictions(self, eff, theta) -> tuple[list, dict]:
+        """A deterministic candidate's validation predictions computed again, with the starts each
+        experiment's used (:attr:`hwid.diagnose.modelsim.ModelSim.starts_seen`): ``(predictions,
+        {i: starts})``."""
+        seen: dict = {}
+        sim = self.svw if self.refit_h else self.sv
+        sim.starts_seen = seen
+        if self.refit_g:
+            self._g_cache.clear()       # its simulators are made anew, noting into ``seen``
+        try:
+            if self.refit_h:
+                preds = self._refit_predict(eff, theta, "val")
+            else:
+                preds = [eff.simulate(self.sv, theta, i) for i in range(len(self.yv))]
+        finally:
+            sim.starts_seen = None
+            if self.refit_g:
+                self._g_cache.clear()
+        return preds, seen
+
+    def refit_blocks(self, eff, theta):
+        """The model a candidate's prediction is, block by block: ``(F, G, h, own)``, F and G as its
+        joint fit left them (the model's where they were not re-estimated), h re-estimated on the fit
+        data as ascending powers of w (:class:`hwid.blocks.static.PolynomialH`), ``own`` the
+        effect's own parameters. Only with ``refit_h``."""
+        from hwid.blocks.static import PolynomialH
+        if self.refit_g:
+            own, g = self._split(eff, theta)
+            F, G = self.input_nl(g), self.linear(g)
+        else:
+            own, F, G = theta, self.svw.model.input, self.svw.model.linear
+        c = self._h_coef(eff, theta, self._designs(eff, theta, "fit", scored=True))
+        P = np.polynomial
+        # sum c_j P_j(s), s = (w - centre) / half-width, in powers of w
+        h = P.Polynomial(P.legendre.leg2poly(c))(P.Polynomial([-self._w_c / self._w_r, 1.0 / self._w_r]))
+        return F, G, PolynomialH(tuple(float(x) for x in h.coef)), own
+
+
 def _lsq(A, b) -> np.ndarray:
     """Least squares for a tall, well-conditioned design (h's Legendre basis on [-1, 1]): normal
     equations, or an SVD when they are too ill-conditioned to trust."""

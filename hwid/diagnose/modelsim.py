@@ -1,6 +1,7 @@
-"""The diagnosis's simulator of a model on its experiments (:class:`ModelSim`), with the signal
-primitives the effects are built from (a slew, a play between two border arrays, a direction map,
-a dead zone, a first-order lag, a zero-phase smoother).
+"""The diagnosis's simulator of a model on its experiments (:class:`ModelSim`), with the zero-phase
+smoother a drift is estimated with; the signal maps the effects are built from (a play between two
+border arrays, a direction map, a first-order lag, ...) are the model's own,
+:mod:`hwid.blocks.effects`.
 
 :class:`ModelSim` caches the chain's intermediate signals so an effect recomputes only what it
 changes, carries the input each experiment's plant received before it (an actuator with memory),
@@ -11,9 +12,9 @@ effect leaves open: the gear's position (:meth:`ModelSim.gear_start`) and G's re
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 from scipy.ndimage import uniform_filter1d
 
+from hwid.blocks.effects import free_response
 from hwid.blocks.linear import LinearBlock
 from hwid.diagnose.experiments import settling_time
 from hwid.diagnose.starts import search_1d
@@ -21,34 +22,6 @@ from hwid.model import HWModel, InputNonlinearity
 
 
 # ------------------------------------------------------------------------------ signal primitives
-
-@njit(cache=True)
-def play_arrays(lo, hi, v0):
-    out = np.empty_like(lo)
-    prev = v0
-    for k in range(lo.shape[0]):
-        if prev < lo[k]:
-            prev = lo[k]
-        elif prev > hi[k]:
-            prev = hi[k]
-        out[k] = prev
-    return out
-
-
-@njit(cache=True)
-def direction_arrays(z, up, dn, u0):
-    out = np.empty_like(z)
-    prev = u0
-    for k in range(z.shape[0]):
-        if k > 0:
-            dz = z[k] - z[k - 1]
-            if dz > 0.0:
-                prev = up[k]
-            elif dz < 0.0:
-                prev = dn[k]
-        out[k] = prev
-    return out
-
 
 def since_crossed(u, F: InputNonlinearity) -> int:
     """Samples back from the end of ``u`` to the start of the shortest tail over which ``u`` spans
@@ -64,27 +37,6 @@ def since_crossed(u, F: InputNonlinearity) -> int:
     return int(done[0]) + 1 if done.size else int(u.size)
 
 
-def first_order(x, tau: float, dt: float) -> np.ndarray:
-    """``1/(tau s + 1)`` applied to ``x`` (exact for a zero-order-held input), from equilibrium;
-    a matrix is filtered column by column (a design matrix whose columns all pass the lag).
-
-    The sampled lag is ``y[k+1] = a y[k] + (1 - a) x[k]``, ``a = exp(-dt/tau)``, ``y[0] = x[0]``."""
-    x = np.asarray(x, float)
-    if tau <= 0 or x.shape[0] == 0:
-        return x
-    y = _first_order_rows(np.ascontiguousarray(x.reshape(x.shape[0], -1)), float(np.exp(-dt / float(tau))))
-    return y.reshape(x.shape)
-
-
-@njit(cache=True)
-def _first_order_rows(x, a):
-    y = np.empty_like(x)
-    y[0] = x[0]
-    for k in range(1, x.shape[0]):
-        y[k] = a * y[k - 1] + (1.0 - a) * x[k - 1]
-    return y
-
-
 def smooth(r, width: int) -> np.ndarray:
     """Zero-phase moving average of ``width`` samples (edges: nearest value)."""
     r = np.asarray(r, float)
@@ -97,6 +49,44 @@ def simulate_linear(G: LinearBlock, v, dt: float) -> np.ndarray:
     """:meth:`LinearBlock.simulate` (exact ZOH with fractional delay, from the equilibrium of
     ``v[0]``; its discretisation is cached, so the fits can simulate one G many times)."""
     return G.simulate(v, dt)
+
+
+def folded(model: HWModel, dt: float) -> HWModel:
+    """A model that carries effects (a diagnosis's ``corrected.yaml`` given as ``--model``) as the
+    diagnosis's blocks: its input effects as the actuator (:class:`hwid.model.Actuator`: a clip, a
+    slew from each call's start, a dead zone, in that order), F and G as the effects change them
+    (:func:`hwid.blocks.effects.effective_blocks`), the effects after G in h
+    (:class:`hwid.blocks.effects.OutputStage`), so each candidate is added to the model whole. A
+    friction or a bend of F's borders, or input effects in another order, cannot be folded into
+    those blocks: ``ValueError`` with a sentence."""
+    from hwid.blocks.effects import OutputStage, effective_blocks
+    from hwid.model import Actuator
+    specs = model.effects
+    if not specs:
+        return model
+    inputs = [s for s in specs if s.block == "input"]
+    order = ["input_saturation", "rate_limit", "input_deadzone"]
+    names = [s.effect for s in inputs]
+    if any(n not in order for n in names) or names != sorted(names, key=order.index) or len(set(names)) < len(names):
+        raise ValueError(f"the model's input effects ({', '.join(names)}) cannot be diagnosed as its actuator "
+                         "(at most one clip, one slew and one dead zone, in that order)")
+    if model.actuator is not None and inputs:
+        raise ValueError("the model carries both an actuator and input effects")
+    for name, why in (("friction", "no place for it between F and G"), ("curved_borders", "straight borders")):
+        if any(s.effect == name for s in specs):
+            raise ValueError(f"a model carrying {name} cannot be diagnosed further (the diagnosis's blocks have {why})")
+    act = model.actuator
+    if inputs:
+        d = {s.effect: s for s in inputs}
+        clip = d.get("input_saturation")
+        rate = d.get("rate_limit")
+        act = Actuator(None if clip is None else (clip.get("u_lo"), clip.get("u_hi")),
+                       None if rate is None else rate.get("rate"),
+                       0.0 if "input_deadzone" not in d else d["input_deadzone"].get("delta"))
+    F, G = effective_blocks(model.input, model.linear, specs)
+    outs = tuple(s for s in specs if s.block == "output")
+    h = OutputStage(model.output, outs, float(dt)) if outs else model.output
+    return HWModel(F, G, h, act)
 
 
 # ------------------------------------------------------------------------------------ the simulator
@@ -121,9 +111,25 @@ class ModelSim:
 
     #: a nuisance start is looked for on this many points across its range first
     NUISANCE_POINTS = 9
+    #: where not None, a dict ``{i: {...}}`` the starts estimated for experiment ``i`` are noted in
+    #: (:meth:`note_start`): what a model simulating the same prediction must start from
+    starts_seen = None
+
+    def note_start(self, i: int | None, **starts) -> None:
+        """Note the starts an effect's prediction on experiment ``i`` used (:attr:`starts_seen`):
+        ``gears`` and ``rests`` are appended to, anything else is set."""
+        if self.starts_seen is None or i is None:
+            return
+        d = self.starts_seen.setdefault(i, {"gears": [], "rests": []})
+        for key, value in starts.items():
+            if key in ("gears", "rests"):
+                d[key].append(value)
+            else:
+                d[key] = value
 
     def __init__(self, model: HWModel, dt: float, inputs, u_before=None, lead=None, pre=None):
-        self.model = model
+        self.model = folded(model, dt)
+        model = self.model
         self.dt = float(dt)
         self.inputs = [np.ascontiguousarray(u, float) for u in inputs]
         self.u_before = ([None if b is None else np.ascontiguousarray(b, float) for b in u_before]
@@ -143,6 +149,7 @@ class ModelSim:
         new.dt, new.inputs, new.v, new.w = self.dt, self.inputs, self.v, self.w
         new.u_before, new.lead, new.measured = self.u_before, self.lead, self.measured
         new.pre, new.free_ringing = self.pre, self.free_ringing
+        new.starts_seen = self.starts_seen
         new.x = [h(w) for w in self.w]
         return new
 
@@ -196,6 +203,12 @@ class ModelSim:
         Started anywhere in the play, a backlash's output is ``clip(g0, v_lo, v_hi)`` with
         ``v_lo, v_hi`` its outputs from the play's two ends at ``u[0]``: one number per
         experiment, a nuisance parameter like the initial state ``hwid compare`` estimates."""
+        g0 = self._gear_start(u, i, F)
+        self.note_start(i, gears=g0)
+        return g0
+
+    def _gear_start(self, u, i: int, F: InputNonlinearity | None = None) -> float | None:
+        """:meth:`gear_start`, not noted."""
         F = F or self.model.input
         scored = self._scored(i) if F.type == "backlash" and u.size else None
         if scored is None:
@@ -271,7 +284,9 @@ class ModelSim:
             r = ys - h(w + (level - v[0]) * d)[m]
             return float(r @ r)
 
-        return w + (self._search(cost, lo, hi) - v[0]) * d
+        level = self._search(cost, lo, hi)
+        self.note_start(i, rests=float(level))
+        return w + (level - v[0]) * d
 
     #: a mode of G still rings at the first scored sample where what it could carry there from a
     #: start anywhere in the working range moves the output by more than this share of the floor
@@ -309,26 +324,17 @@ class ModelSim:
             return w
         y, m, h, sigma = scored
         k0 = int(np.argmax(m))
-        tau = (np.arange(w.size) - k0) * self.dt
-        after = tau >= 0.0
         lo, hi = self.v_span
         reach = abs(float(G.dc_gain)) * (hi - lo)
         ws = w[m]
         eps = 1e-6 * max(1.0, float(np.max(np.abs(ws))))
         slope = float(np.max(np.abs(h(ws + eps) - h(ws - eps)))) / (2 * eps)
-        cols = []
-        for lam in np.atleast_1d(np.asarray(poles, complex)):
-            if lam.real >= 0 or lam.imag < 0:
-                continue
-            if reach * slope * np.exp(lam.real * k0 * self.dt) <= self.RINGING_SHOWS * sigma:
-                continue
-            env = np.where(after, np.exp(lam.real * np.where(after, tau, 0.0)), 0.0)
-            cols.append(env * np.cos(lam.imag * tau))
-            if lam.imag > 0:
-                cols.append(env * np.sin(lam.imag * tau))
-        if not cols:
+        kept = [lam for lam in np.atleast_1d(np.asarray(poles, complex))
+                if lam.real < 0 and lam.imag >= 0
+                and reach * slope * np.exp(lam.real * k0 * self.dt) > self.RINGING_SHOWS * sigma]
+        if not kept:
             return w
-        B = np.column_stack(cols)
+        B = free_response(w.size, k0, self.dt, kept)
         Bs, ys = B[m], y[m]
         c = np.zeros(B.shape[1])
         r = ys - h(ws)
@@ -349,6 +355,9 @@ class ModelSim:
                 step *= 0.5
             if not better:
                 break
+        if np.any(c != 0):
+            self.note_start(i, ringing={"from_sample": k0, "poles": [[float(p.real), float(p.imag)] for p in kept],
+                                        "amplitudes": [float(x) for x in c]})
         return w + B @ c
 
     def before(self, i: int):
@@ -389,6 +398,7 @@ class ReblockedSim(ModelSim):
         self.pre = getattr(base, "pre", None)
         self.measured = getattr(base, "measured", None)
         self.free_ringing = getattr(base, "free_ringing", True)
+        self.starts_seen = getattr(base, "starts_seen", None)
         self._v = self._w = self._x = None
 
     @property

@@ -16,7 +16,7 @@ from hwid.diagnose import experiments, gap
 from hwid.diagnose.conclude import conclude
 from hwid.diagnose.context import Context, Validation, drift_additivity, scale_of, sine_band
 from hwid.diagnose.modelsim import ModelSim
-from hwid.diagnose.sim_side import load_model
+from hwid.diagnose.sim_side import check_diagnosable, load_model
 from hwid.plant import make_plant
 
 
@@ -44,6 +44,7 @@ def diagnose(cfg, out_dir, model=None, json_path=None, echo=print, effects=None)
     plant = make_plant(cfg, journal_dir=out / "rig_journal")
     calls_start = plant.calls
     sim_model, origin = load_model(model, cfg, plant, out, echo)
+    check_diagnosable(sim_model, origin, cfg.sampling.dt)
     calls_identified = plant.calls
     seconds_model = time.perf_counter() - t_start
     identified = origin.get("source") == "identified"

@@ -169,6 +169,16 @@ def _actuator_text(act) -> str:
     return ", ".join(parts)
 
 
+def check_diagnosable(model: HWModel, origin: dict, dt: float) -> None:
+    """Raise :class:`HwidError` (one line) where a given model carries effects the diagnosis's
+    blocks cannot hold (:func:`hwid.diagnose.modelsim.folded`)."""
+    from hwid.diagnose.modelsim import folded
+    try:
+        folded(model, dt)
+    except ValueError as err:
+        raise HwidError(f"--model {origin.get('path', '')}: {err}") from None
+
+
 def load_model(spec, cfg=None, plant=None, out_dir=None, echo=print) -> tuple[HWModel, dict]:
     """The sim-side model and a description of where it came from.
 

@@ -30,6 +30,7 @@ class Candidate:
     theta: np.ndarray | None = field(default=None, repr=False)   # the fit's parameters (effect's, then F's and G's)
     fitted: object = field(default=None, repr=False)   # the Effect theta belongs to (a family at its chosen degree)
     stripped: bool = False     # fitted on the baseline with the identified G's outside modes taken out
+    own_fitter: object = field(default=None, repr=False, compare=False)   # the fitter of that baseline, if so
     intervals: dict | None = None   # 95 % intervals of ``params`` (:mod:`hwid.diagnose.intervals`)
 
     def to_dict(self) -> dict:

@@ -29,6 +29,7 @@ from hwid import HwidError, config, paper
 from hwid.blocks.linear import LinearBlock
 from hwid.blocks.static import PiecewiseH, PolynomialH
 from hwid.identify.result import HistoryResult, LinearResult, NonlinearResult, WholeResult
+from hwid.blocks.effects import EffectSpec
 from hwid.model import Actuator, HWModel, InputNonlinearity, from_config
 from hwid.plant import Record
 from hwid.results import (ResultsError, open_results, read_batch_summary, read_compare, read_diagnosis, read_dict,
@@ -219,4 +220,13 @@ def _model_from_dict(d: dict) -> HWModel:
     return HWModel(InputNonlinearity(str(f["type"]), float(f["slope_up"]), float(f["slope_down"]),
                                      float(f["d_plus"]), float(f["d_minus"])),
                    LinearBlock(floats(lin["num"]), floats(lin["den"]), float(lin["delay"])),
-                   h, Actuator.from_dict(d.get("actuator")))
+                   h, Actuator.from_dict(d.get("actuator")), _effects_of(d.get("effects")))
+
+
+def _effects_of(stored) -> tuple[EffectSpec, ...]:
+    """The effects of ``HWModel.to_dict()`` as :func:`hwid.results.write_dict` stored them (a JSON
+    list of ``{effect, PARAMETER: value}``); none where absent."""
+    if not stored:
+        return ()
+    items = json.loads(stored) if isinstance(stored, str) else stored
+    return tuple(EffectSpec(e["effect"], tuple((k, float(v)) for k, v in e.items() if k != "effect")) for e in items)
