@@ -154,14 +154,79 @@ def _pooled(pieces: list[tuple[float, float, float]]) -> tuple[float, float] | N
     return (ss / n, float(dof)) if n > 0 else None
 
 
-def _detrended(x: np.ndarray) -> tuple[list[tuple[float, float]], list[np.ndarray]]:
-    """Per block of ``x``: (sum of squares about its quadratic, dof, dof) and the detrended block."""
-    out, parts = [], []
-    for b in _blocks(np.asarray(x, float)):
-        r = _quadratic_residual(b)
-        out.append((float(r @ r), b.size - 3.0, b.size - 3.0))
-        parts.append(r)
-    return out, parts
+def _detrending(n: int) -> np.ndarray:
+    """``I - P`` for a block of ``n`` samples, ``P`` the projection onto a quadratic in time."""
+    t = np.linspace(-1.0, 1.0, n)
+    q, _ = np.linalg.qr(np.vander(t, 3))
+    return np.eye(n) - q @ q.T
+
+
+def _lag_sums(r: np.ndarray, lags: int) -> np.ndarray:
+    """``sum_t r(t) r(t + k)`` for ``k = 0 .. lags``."""
+    return np.array([float(r[:r.size - k] @ r[k:]) for k in range(lags + 1)])
+
+
+def _moments(blocks: list[np.ndarray], lags: int) -> np.ndarray | None:
+    """The noise's autocovariances ``gamma_0 .. gamma_lags`` from blocks each detrended by its own
+    quadratic, the detrending's bias undone: ``E[sum_t r(t) r(t+k)] = sum_j gamma_j tr(D_k M A_j M)``
+    (``M`` the detrending, ``A_j`` ones on the diagonals ``+-j``, ``D_k`` ones on diagonal ``k``),
+    solved for ``gamma`` with ``gamma_j = 0`` beyond ``lags`` (method of moments). None where the
+    system is singular."""
+    sums, design = np.zeros(lags + 1), np.zeros((lags + 1, lags + 1))
+    by_size: dict[int, list[np.ndarray]] = {}
+    for b in blocks:
+        by_size.setdefault(b.size, []).append(b)
+    for n, group in by_size.items():
+        m = _detrending(n)
+        for b in group:
+            sums += _lag_sums(m @ b, lags)
+        for j in range(lags + 1):
+            a = np.eye(n, k=j) + (np.eye(n, k=-j) if j else 0.0)
+            b_j = m @ a @ m
+            design[:, j] += len(group) * np.array([np.trace(b_j, offset=k) for k in range(lags + 1)])
+    try:
+        return np.linalg.solve(design, sums)
+    except np.linalg.LinAlgError:
+        return None
+
+
+def correlated_floor(blocks: list[np.ndarray], max_lag: int = 20) -> tuple[float, float, float] | None:
+    """The noise variance, its degrees of freedom and its correlation time (samples) from blocks of
+    noise plus a slow trend: ``(var, dof, kappa)``, or None with too few samples.
+
+    Each block is detrended by its own quadratic; a block whose variance is an outlier above the
+    median block's (:data:`OUTLIER_P`) is left out (a disturbance, not noise). A quadratic fitted to
+    correlated noise takes more of it than its three parameters' share (about ``3 kappa`` samples'
+    worth, not 3: on AR(1) noise with coefficient 0.5 the plain estimate reads the noise 5 % low),
+    so the variance and the autocorrelation are estimated together (:func:`_moments`), the lags
+    summed up to Sokal's window (the smallest ``K >= 5 kappa_K``). ``dof``: the samples left after
+    the trends, over ``kappa``."""
+    blocks = [np.asarray(b, float) for b in blocks if np.size(b) >= MIN_BLOCK]
+    if not blocks:
+        return None
+    plain = [(float(r @ r), b.size - 3.0, b.size - 3.0) for b in blocks for r in [_quadratic_residual(b)]]
+    var = np.array([ss / n for ss, n, _ in plain])
+    med = float(np.median(var))
+    keep = [b for b, p, v in zip(blocks, plain, var)
+            if med == 0 or v <= med * stats.chi2.ppf(1 - OUTLIER_P, p[2]) / p[2]]
+    lags = int(min(max_lag, min(b.size for b in keep) // 3))
+    gamma = _moments(keep, lags) if lags >= 1 else None
+    n_free = float(sum(b.size - 3 for b in keep))
+    if gamma is None or not gamma[0] > 0:
+        ss = sum(float(r @ r) for r in map(_quadratic_residual, keep))
+        return (ss / n_free, n_free, 1.0) if n_free > 0 else None
+    rho = gamma[1:] / gamma[0]
+    kappa, window = 1.0, 0
+    for k in range(1, lags + 1):
+        kappa, window = 1.0 + 2.0 * float(np.sum(rho[:k])), k
+        if k >= 5 * kappa:
+            break
+    kappa = float(max(kappa, 1.0))
+    if window < lags:                               # the covariances within the window only
+        gamma = _moments(keep, window) if window >= 1 else gamma
+        if gamma is None or not gamma[0] > 0:
+            return None
+    return float(gamma[0]), n_free / kappa, kappa
 
 
 def _start(rec) -> int:
@@ -170,7 +235,7 @@ def _start(rec) -> int:
 
 def _repeats(records) -> tuple | None:
     """The floor from pairs of records with identical inputs: ``(var, dof, kappa, detail)`` or None."""
-    pieces, parts, pairs = [], [], 0
+    parts, pairs = [], 0
     for i, a in enumerate(records):
         ua = np.asarray(a.u, float)[_start(a):]
         for b in records[i + 1:]:
@@ -178,14 +243,12 @@ def _repeats(records) -> tuple | None:
             if ua.size != ub.size or ua.size < 5 * MIN_BLOCK or not np.array_equal(ua, ub):
                 continue
             d = (np.asarray(a.y, float)[_start(a):] - np.asarray(b.y, float)[_start(b):]) / np.sqrt(2.0)
-            blocks, res = _detrended(d[d.size // 5:])     # the first fifth: the starts may differ
-            pieces += blocks
-            parts += res
+            parts += _blocks(d[d.size // 5:])     # the first fifth: the starts may differ
             pairs += 1
-    pooled = _pooled(pieces)
-    if pooled is None or pooled[1] < MIN_DOF:
+    found = correlated_floor(parts)
+    if found is None or found[1] < MIN_DOF:
         return None
-    return pooled[0], pooled[1], correlation_time(np.concatenate(parts)), f"{pairs} pair(s) of repeated records"
+    return (*found, f"{pairs} pair(s) of repeated records")
 
 
 def hold_segments(u: np.ndarray, min_samples: int = 2 * MIN_BLOCK) -> list[tuple[int, int]]:
@@ -200,18 +263,17 @@ def hold_segments(u: np.ndarray, min_samples: int = 2 * MIN_BLOCK) -> list[tuple
 
 def _holds(records) -> tuple | None:
     """The floor from the settled half of each hold: ``(var, dof, kappa, detail)`` or None."""
-    pieces, parts, holds = [], [], 0
+    parts, holds = [], 0
     for r in records:
         y = np.asarray(r.y, float)
         for a, b in hold_segments(r.u):
-            blocks, res = _detrended(y[(a + b) // 2:b])
-            pieces += blocks
-            parts += res
+            blocks = _blocks(y[(a + b) // 2:b])
+            parts += blocks
             holds += bool(blocks)
-    pooled = _pooled(pieces)
-    if pooled is None or pooled[1] < MIN_DOF:
+    found = correlated_floor(parts)
+    if found is None or found[1] < MIN_DOF:
         return None
-    return pooled[0], pooled[1], float(np.median([correlation_time(p, 10) for p in parts])), f"{holds} hold(s)"
+    return (*found, f"{holds} hold(s)")
 
 
 def _smoother_kernel(window: int) -> tuple[float, float]:

@@ -150,3 +150,29 @@ def test_model_error_is_the_error_beside_the_noise():
     assert ad.model_error == pytest.approx(np.sqrt(ad.rms_fit ** 2 - ad.floor.sigma ** 2), rel=1e-12)
     assert f"{ad.model_error:.3g}" in ad.reason and ad.to_dict()["model_error"] == ad.model_error
     assert adequacy.assess(model(), own_records(28)).model_error < 0.5 * SIGMA
+
+
+def _ar1(rng, n: int, phi: float, sd: float) -> np.ndarray:
+    """AR(1) noise of coefficient ``phi`` and marginal standard deviation ``sd``."""
+    from scipy import signal
+    return sd * np.sqrt(1 - phi ** 2) * signal.lfilter([1.0], [1.0, -phi], rng.standard_normal(n))
+
+
+def test_correlated_noise_floor_and_no_false_alarm():
+    """AR(1) noise (coefficient 0.5, correlation time 3 samples) on the true model's output: the floor
+    from the holds must not read the noise low (a quadratic fitted to each block takes about 3 kappa
+    samples' worth of correlated noise, not 3). Over 40 seeds its 95 % interval holds the true
+    sigma in at least 34 (binomial: expected 38, P(< 34) < 2 %), and the true model is a misfit in at
+    most 3 (alpha = 1 %: P(>= 3 of 40) < 1 %). Before the correction: 14 of 40 covered, 17 misfits."""
+    cover = misfits = 0
+    for seed in range(40):
+        rng = np.random.default_rng(seed)
+        recs = []
+        for name, u in (("stairs", staircase(0.05)), ("sine", sine(0.05))):
+            recs.append(Record(name, 0.05, u, model().simulate(u, 0.05).x + _ar1(rng, u.size, 0.5, SIGMA)))
+        floor = adequacy.estimate_floor(recs)
+        assert floor.source == "holds"
+        lo, hi = floor.interval(0.95)
+        cover += lo <= SIGMA <= hi
+        misfits += adequacy.assess(model(), recs).misfit
+    assert cover >= 34 and misfits <= 3, (cover, misfits)
