@@ -288,3 +288,19 @@ def test_none_survives_hdf5_and_an_old_file_with_zero_width_still_reads(tmp_path
     old_back = read_nonlinear(path, cfg)
     assert old_back.ci["slope_up"] is None and old_back.ci["h_coefficients"][0] is None
     assert old_back.ci["h_coefficients"][1:] == res.ci["h_coefficients"][1:] and old_back.undetermined == {}
+
+
+def test_batch_coverage_counts_only_runs_with_an_interval():
+    """``hwid.batch.summarise``: a run whose estimate has no interval (h_bar's constant always; a
+    border one run's data left undetermined) is neither covered nor missed; it is counted apart."""
+    from hwid.batch import flatten, summarise
+    runs = [{"estimates": flatten({"d_plus": 0.5, "d_plus_ci": [0.4, 0.6], "h_coefficients": [0.0, 1.0],
+                                   "h_coefficients_ci": [None, [0.9, 1.1]], "degree": 1}, None)},
+            {"estimates": flatten({"d_plus": 0.52, "d_plus_ci": [0.51, 0.53], "h_coefficients": [0.0, 1.0],
+                                   "h_coefficients_ci": [None, [0.95, 1.05]], "degree": 1}, None)},
+            {"estimates": flatten({"d_plus": 0.9, "d_plus_ci": None, "h_coefficients": [0.0, 1.0],
+                                   "h_coefficients_ci": [None, [0.8, 1.2]], "degree": 1}, None)}]
+    stats = summarise(runs, {"d_plus": 0.5, "h_c0": 0.0, "h_c1": 1.0})
+    assert stats["d_plus"]["coverage"] == 0.5 and stats["d_plus"]["without_interval"] == 1
+    assert "coverage" not in stats["h_c0"] and stats["h_c0"]["without_interval"] == 3
+    assert stats["h_c1"]["coverage"] == 1.0 and stats["h_c1"]["without_interval"] == 0

@@ -125,5 +125,6 @@ def interval_flaw(value: float, interval, width: float | None = None, positive: 
         return (f"its 95 % interval [{lo:.4g}, {hi:.4g}] is wider than the whole input range the levels explore "
                 f"({width:.4g}): they do not place it")
     if positive and lo <= 0.0:
-        return f"its 95 % interval [{lo:.4g}, {hi:.4g}] reaches zero or below, where no slope lies: the levels do not bound it"
+        return (f"its 95 % interval [{lo:.4g}, {hi:.4g}] reaches zero or below, where no slope lies: the levels "
+                "do not bound it")
     return None

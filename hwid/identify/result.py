@@ -403,7 +403,8 @@ def format_history(res: HistoryResult) -> str:
              f"  dead band d+ - d- = {interval_text(res.dead_band, ci['dead_band'])}",
              f"  S^d = {interval_text(res.slope_down, ci['slope_down'])}",
              f"  h_bar degree {len(res.h_coefficients) - 1}: {', '.join(f'{c:.4g}' for c in res.h_coefficients)}"
-             + ("  (undetermined)" if "h_coefficients" in und else ""),
+             f"  (c0 {FIXED['c0']})" + ("  (undetermined)" if "h_coefficients" in und else "")
+             + "".join(f"  ({k} undetermined)" for k in und if k[:1] == "c" and k[1:].isdigit()),
              f"  {sum(lv.scored for lv in res.levels)} levels scored; chi2 = {res.chi2:.4g} on {res.dof} dof "
              f"(p = {res.p_value:.2g})"]
     return "\n".join(lines)

@@ -306,8 +306,8 @@ def _undetermined(prob: Problem, theta, ci: dict, f, h) -> tuple[dict, dict]:
     for name, i in (("slope_down", 1), ("d_minus", 2)):
         margin = 1e-6 * (hi[i] - lo[i])
         if not (lo[i] + margin < theta[i] or i == 2) or not theta[i] < hi[i] - margin:
-            why[name] = (f"the estimate sits at the edge of its search range [{np.exp(lo[i]):.4g}, {np.exp(hi[i]):.4g}] "
-                         f"(of {'S^d' if i == 1 else 'd+ - d-'}): these records do not bound it")
+            why[name] = (f"the estimate sits at the edge of its search range [{np.exp(lo[i]):.4g}, "
+                         f"{np.exp(hi[i]):.4g}] (of {'S^d' if i == 1 else 'd+ - d-'}): these records do not bound it")
     for name in ("d_plus", "d_minus", "slope_down"):
         flaw = determinable.interval_flaw(getattr(f, name), ci[name], positive=name == "slope_down")
         if flaw and name not in why:
