@@ -289,7 +289,7 @@ class Model:
         """The 95 % intervals of F's and h's parameters (``d_plus``, ``d_minus``, ``slope_down``,
         ``h_coefficients``): the whole fit's for the route ``whole``, stage 1's (Section 4) for the
         route ``stages``; empty for a loaded model. A parameter the data cannot determine has no
-        entry or None."""
+        entry or None; so has h_bar's constant (``h_coefficients[0]``), fixed by h(0) = 0."""
         ident = self.identification
         source = None
         if ident is not None and ident.route == "whole" and ident.whole is not None:

@@ -276,7 +276,9 @@ def run_batch(cfg, runs: int, out_dir: str | Path, sweeps: list[tuple[str, list]
 # ----------------------------------------------------------------------------- summaries and the file
 
 def summarise(results: list[dict], truth: dict[str, float]) -> dict[str, dict]:
-    """Bias, std, RMSE, interval coverage and CRLB efficiency per estimate (runs without errors)."""
+    """Bias, std, RMSE, interval coverage and CRLB efficiency per estimate (runs without errors).
+    ``coverage`` is over the runs whose estimate has an interval; ``without_interval`` counts the
+    others (a parameter fixed by the normalisation, or one a run's data left undetermined)."""
     ok = [r["estimates"] for r in results if r.get("estimates")]
     stats: dict[str, dict] = {}
     for name, true in truth.items():
@@ -289,8 +291,12 @@ def summarise(results: list[dict], truth: dict[str, float]) -> dict[str, dict]:
                                "rmse": float(np.sqrt(np.mean((vals - true) ** 2)))}
         lo = np.array([e.get(name + "_lo", np.nan) for e in ok if name in e])
         hi = np.array([e.get(name + "_hi", np.nan) for e in ok if name in e])
-        if np.all(np.isfinite(lo)):
-            s["coverage"] = float(np.mean((lo <= true) & (true <= hi)))
+        # a run without an interval (fixed by the normalisation, or undetermined) is neither covered
+        # nor missed: the coverage is over the runs with one, and the others are counted
+        has = np.isfinite(lo) & np.isfinite(hi)
+        s["without_interval"] = int(np.sum(~has))
+        if np.any(has):
+            s["coverage"] = float(np.mean((lo[has] <= true) & (true <= hi[has])))
         cr = np.array([e.get(name + "_crlb", np.nan) for e in ok if name in e])
         if np.all(np.isfinite(cr)):
             s["crlb_std"] = float(np.sqrt(np.mean(cr)))

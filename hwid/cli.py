@@ -198,6 +198,8 @@ def batch(config: Path = typer.Argument(..., help="Config YAML (a simulated plan
             if name.startswith("h_c"):
                 continue
             cov = f" coverage {s['coverage']:.3f}" if "coverage" in s else ""
+            if s.get("without_interval"):       # neither covered nor missed (hwid.batch.summarise)
+                cov += f" ({int(s['without_interval'])} run(s) without an interval, not counted)"
             eff = f" efficiency {s['efficiency']:.2f}" if "efficiency" in s else ""
             typer.echo(f"  {name:>14}: bias {s['bias']:+.2e} std {s['std']:.2e} rmse {s['rmse']:.2e}{cov}{eff}")
     typer.echo(f"wrote {path}")

@@ -95,6 +95,6 @@ def table1_rows(cfg, result) -> dict:
     for k in ("d_plus", "slope_down", "d_minus"):
         ci = result.ci[k]
         borders.append({"name": k, "paper": BORDERS[k], "true": float(true_b[k]),
-                        "ours": float(getattr(result, k)), "ci": tuple(ci),
-                        "inside": bool(ci[0] <= true_b[k] <= ci[1])})
+                        "ours": float(getattr(result, k)), "ci": None if ci is None else tuple(ci),
+                        "inside": ci is not None and bool(ci[0] <= true_b[k] <= ci[1])})
     return {"rows": rows, "borders": borders}

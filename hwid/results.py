@@ -363,6 +363,8 @@ def write_nonlinear(path: str | Path, cfg, result: NonlinearResult, records=()) 
     out = path if path.suffix == ".h5" else path / NONLINEAR
     d = result.to_dict()
     fit = d.pop("fit")
+    for key in [k for k in d if k.endswith("_ci")]:
+        d[key] = _nan_for_none(d[key])
     with atomic_h5(out) as f:
         write_provenance(f, "nonlinear", cfg)
         g = f.require_group("result")
@@ -375,8 +377,21 @@ def write_nonlinear(path: str | Path, cfg, result: NonlinearResult, records=()) 
     return out
 
 
+def _nan_for_none(interval):
+    """An interval (or a list of them) for a numeric dataset: ``[NaN, NaN]`` stands for "no
+    interval" (None: fixed by the normalisation, or undetermined); read back as None by
+    :func:`hwid.identify.result.stored_interval`."""
+    if interval is None:
+        return [np.nan, np.nan]
+    if interval and isinstance(interval[0], (list, tuple)) or (interval and interval[0] is None):
+        return [_nan_for_none(v) for v in interval]
+    return interval
+
+
 def read_nonlinear(path: str | Path, cfg=None) -> NonlinearResult:
-    """The :class:`NonlinearResult` of ``nonlinear.h5`` (or of a directory holding it)."""
+    """The :class:`NonlinearResult` of ``nonlinear.h5`` (or of a directory holding it). An interval
+    stored as ``[NaN, NaN]`` reads as None; in a file written before, h_bar's constant and
+    ``slope_up`` (``[0, 0]``, ``[1, 1]``) read as None too (:meth:`NonlinearResult.from_dict`)."""
     path = Path(path)
     if path.is_dir():
         path = path / NONLINEAR

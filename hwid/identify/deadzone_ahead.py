@@ -151,6 +151,9 @@ def _with_width_uncertain(est, best: float, step: float, fit_at) -> tuple:
     ends = [e for e in (fit_at(best - half), fit_at(best + half)) if e is not None and best - half > 0]
     ci = dict(r.ci)
     for name in ("d_plus", "slope_down", "d_minus"):
+        if ci[name] is None or any(e.result_.ci[name] is None for e in ends):
+            ci[name] = None     # undetermined at the best width or at an end of its interval
+            continue
         ci[name] = (float(min([ci[name][0]] + [e.result_.ci[name][0] for e in ends])),
                     float(max([ci[name][1]] + [e.result_.ci[name][1] for e in ends])))
     return (max(best - half, 0.0), best + half), dataclasses.replace(r, ci=ci)

@@ -18,10 +18,17 @@ The direction of a level is that of the input's last move before it, in the reco
 passages between levels included); a record's first level has none (its state is a nuisance
 parameter) and counts for no branch. These are upper bounds: a level approached from below whose
 step stayed inside the play sits on a horizontal path, not on the border.
+
+Both stage 1 paths (a recorded history, :mod:`hwid.identify.history`; the paper's staircases,
+:mod:`hwid.identify.nonlinear`) count their levels here, refuse a design that cannot determine F or
+h_bar at all with the same line (:func:`refusal`), and after the fit report as undetermined every
+interval that cannot stand as one (:func:`interval_flaw`).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+import numpy as np
 
 
 @dataclass(frozen=True)
@@ -87,3 +94,37 @@ def design(levels) -> Design:
         if lv.scored and lv.record in last_dir:
             last_dir[lv.record].add(lv.u)
     return Design(tuple(sorted(up)), tuple(sorted(down)))
+
+
+def refusal(des: Design, what: str, remedy: str = "") -> str | None:
+    """The one line for a design that cannot determine F or h_bar at all -- fewer than 2 distinct
+    levels on a branch: the parameters it leaves undetermined and the levels that would determine
+    them (``what``: whose stage 1; ``remedy``: where to add them); None when each branch has 2."""
+    if len(des.up) >= 2 and len(des.down) >= 2:
+        return None
+    names = (["d_plus", "h_bar"] if len(des.up) < 2 else []) + (["slope_down", "d_minus"] if len(des.down) < 2 else [])
+    return (f"{what} cannot determine {', '.join(names)} from these levels: {len(des.up)} distinct level(s) "
+            f"approached from below ({describe(des.up)}) and {len(des.down)} from above ({describe(des.down)}); "
+            "hold at least 2 distinct levels above d+ approached from below and 2 below d- approached from above"
+            f"{remedy}")
+
+
+def interval_flaw(value: float, interval, width: float | None = None, positive: bool = False) -> str | None:
+    """Why ``interval`` cannot stand as the 95 % interval of the estimate ``value``: not finite, of
+    zero width (the fit is exact or the direction unseen), for a border (given ``width``, that of
+    the input range the levels explore) wider than that whole range (the levels do not place it),
+    for a slope (``positive``) reaching zero or below (eq. 1 needs S^d > 0); None when it can."""
+    if interval is None:
+        return None
+    lo, hi = (float(x) for x in interval)
+    if not (np.isfinite(lo) and np.isfinite(hi) and np.isfinite(value)):
+        return "its 95 % interval is not finite: the levels leave it unconstrained"
+    if not hi - lo > 1e-9 * (1.0 + abs(lo)):
+        return "its 95 % interval has zero width: the levels leave it unconstrained or exactly fitted"
+    if width is not None and hi - lo > width:
+        return (f"its 95 % interval [{lo:.4g}, {hi:.4g}] is wider than the whole input range the levels explore "
+                f"({width:.4g}): they do not place it")
+    if positive and lo <= 0.0:
+        return (f"its 95 % interval [{lo:.4g}, {hi:.4g}] reaches zero or below, where no slope lies: the levels "
+                "do not bound it")
+    return None

@@ -296,12 +296,9 @@ class HistoryFit:
         u = np.array([lv.u for lv in levels if lv.scored])
         width = float(np.ptp(u)) or 1.0
         des = determinable.design(levels)
-        if len(des.up) < 2:
-            raise HwidError(f"stage 1 from a recorded history cannot determine F and h_bar from these levels: "
-                            f"{len(des.up)} distinct level(s) approached from below ({determinable.describe(des.up)}) "
-                            f"and {len(des.down)} from above ({determinable.describe(des.down)}); hold at least 2 "
-                            "distinct levels above d+ approached from below and 2 below d- approached from above "
-                            "(or let `hwid run` fit the whole model)")
+        if len(des.up) < 2:     # too few levels on the descending branch leave S^d and d- undetermined
+            raise HwidError(determinable.refusal(des, "stage 1 from a recorded history",
+                                                 " (or let `hwid run` fit the whole model)"))
         table, best = [], None
         for kind in self.types:
             for degree in range(1, min(self.max_degree, des.max_degree()) + 1):
@@ -359,7 +356,7 @@ class HistoryFit:
             sd = float(np.sqrt(max(grad @ cov @ grad, 0.0)))
             ci[name] = (float(value - z * sd), float(value + z * sd))
         sd_c = np.sqrt(np.clip(np.diag(cov)[prob.n_outer:], 0, None))
-        ci["h_coefficients"] = [(0.0, 0.0)] + [(float(a - z * s), float(a + z * s)) for a, s in zip(c, sd_c)]
+        ci["h_coefficients"] = [None] + [(float(a - z * s), float(a + z * s)) for a, s in zip(c, sd_c)]
         levels = tuple(Level(lv.record, lv.index, lv.u, lv.x, lv.se, lv.n, bool(s))
                        for lv, s in zip(prob.levels, prob.scored))
         # (c1..cp, d_plus, slope_down, d_minus) from (d_plus, ln S^d, ln(d_plus - d_minus), states, c)
@@ -377,8 +374,9 @@ class HistoryFit:
 
 def _honest(res: HistoryResult, des, prob: "_Problem", theta, types_tried: bool) -> HistoryResult:
     """``res`` with every parameter the levels cannot determine (:mod:`hwid.identify.determinable`),
-    every interval of zero width and every estimate at the edge of its search range reported as
-    undetermined: interval None and the reason, one warning line each."""
+    every interval of zero width or not finite (:func:`~hwid.identify.determinable.interval_flaw`) and
+    every estimate at the edge of its search range reported as undetermined: interval None and the
+    reason, one warning line each."""
     why = des.undetermined(prob.degree)
     lo, hi = prob.bounds(float(np.ptp([lv.u for lv in prob.levels if lv.scored])) or 1.0)
     edge = {"d_plus": 0, "slope_down": 1, "dead_band": 2}
@@ -389,9 +387,14 @@ def _honest(res: HistoryResult, des, prob: "_Problem", theta, types_tried: bool)
     if "dead_band" in why and "d_minus" not in why:
         why["d_minus"] = why["dead_band"]
     for name in ("d_plus", "d_minus", "dead_band", "slope_down"):
-        interval = res.ci[name]
-        if name not in why and interval is not None and not interval[1] - interval[0] > 1e-9 * (1.0 + abs(interval[0])):
-            why[name] = "its 95 % interval has zero width: the levels leave it unconstrained or exactly fitted"
+        flaw = determinable.interval_flaw(getattr(res, name), res.ci[name])
+        if name not in why and flaw:
+            why[name] = flaw
+    if "h_coefficients" not in why:
+        for i, (c, interval) in enumerate(zip(res.h_coefficients, res.ci["h_coefficients"])):
+            flaw = determinable.interval_flaw(c, interval) if i else None
+            if flaw:
+                why[f"c{i}"] = flaw
     if "adequacy" in why and types_tried:
         why["type"] = "with no degrees of freedom left, either type of F reproduces the levels"
     if not why:
@@ -400,8 +403,8 @@ def _honest(res: HistoryResult, des, prob: "_Problem", theta, types_tried: bool)
     for name in ("d_plus", "d_minus", "dead_band", "slope_down"):
         if name in why:
             ci[name] = None
-    if "h_coefficients" in why:
-        ci["h_coefficients"] = [None for _ in res.ci["h_coefficients"]]
+    ci["h_coefficients"] = [None if "h_coefficients" in why or f"c{i}" in why else v
+                            for i, v in enumerate(res.ci["h_coefficients"])]
     warns = list(res.warnings) + [f"undetermined {name}: {reason}" for name, reason in why.items()]
     return replace(res, ci=ci, warnings=tuple(warns), undetermined=dict(why))
 

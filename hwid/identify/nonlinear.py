@@ -51,11 +51,18 @@ The estimator (:class:`NonlinearEstimator`)
    degree within the type still by the BIC.
 6. 95 % intervals from the covariance ``(J^T W J)^-1`` (nls) or from the delta method through the
    closed form (paper), with t quantiles on the noise's degrees of freedom.
+
+What the staircases can determine is counted before the fit, as for a recorded history
+(:mod:`hwid.identify.determinable`): fewer than 2 distinct levels on a branch is one line naming the
+parameters and the levels that would determine them. After it, an estimate whose interval cannot
+stand as one (not finite, of zero width, a border's wider than the levels' whole range, a slope's
+reaching zero) is reported undetermined (:func:`undetermined`): interval None and the reason.
+``slope_up`` and h_bar's constant are fixed by the normalisation: no interval.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Optional
 
@@ -63,9 +70,10 @@ import numpy as np
 from scipy import special
 
 from hwid import HwidError
+from hwid.identify import determinable
 from hwid.identify.closed_form import Route, TooFewLevels, flat_run, paper_route, route_with_paths, weighted_polyfit
 from hwid.identify.joint_fit import grid_starts, grid_V, nls_cov, nls_fit, one_degree_up, overdispersion
-from hwid.identify.result import NonlinearResult
+from hwid.identify.result import Level, NonlinearResult
 from hwid.identify.stage1_model import (LevelData, ascending_index, internal_levels, joint_chi2, other_zeros,
                                         path_memberships, pick_fit)
 from hwid.identify.steady import SteadyLevels, steady_levels
@@ -179,6 +187,7 @@ class NonlinearEstimator:
         """Identify h and the borders from the two staircase records (Section 4): steady levels,
         horizontal paths, candidate fits per type and degree, selection, covariance, result."""
         self._check_settings()
+        self._check_design(up_staircase, down_staircase)
         warns: list[str] = []
         data, n_up, n_dn = self._steady_levels(up_record, down_record, up_staircase, down_staircase, warns)
         j_a, j_d, z_up = self._flat_paths(data, n_up, n_dn)
@@ -209,6 +218,8 @@ class NonlinearEstimator:
                                                     "d_minus": float(c.theta[-1]),
                                                     "other_zeros": c.other_zeros}
                                                    for c in table]})
+        width = float(np.ptp(np.concatenate([up_staircase.all_levels, down_staircase.all_levels])))
+        self.result_ = undetermined(self.result_, width)
         r = self.result_
         self.type_, self.degree_ = r.type, r.degree
         self.d_plus_, self.slope_down_, self.d_minus_ = r.d_plus, r.slope_down, r.d_minus
@@ -218,6 +229,18 @@ class NonlinearEstimator:
         return self
 
     # ------------------------------------------------------------------------------ fit's steps
+    @staticmethod
+    def _check_design(up_staircase, down_staircase) -> None:
+        """Step 0: what the staircases can determine (:mod:`hwid.identify.determinable`, as for a
+        recorded history): fewer than 2 distinct levels on a branch is one line naming the
+        parameters left undetermined and the levels that would determine them."""
+        levels = [Level(s.name, k, float(u), 0.0, 1.0, 0, k >= s.lead_in.size)
+                  for s in (up_staircase, down_staircase) for k, u in enumerate(s.all_levels)]
+        why = determinable.refusal(determinable.design(levels), "stage 1 from the staircases",
+                                   " (protocols.staircase.levels_up, levels_down)")
+        if why:
+            raise NonlinearIdentificationError(why)
+
     def _steady_levels(self, up_record, down_record, up_staircase, down_staircase, warns):
         """Step 1: each level's steady output and standard error (eq. 9, :mod:`hwid.identify.steady`)."""
         segments_up, offsets_up = self._segments(up_record, up_staircase, "ascending")
@@ -534,9 +557,10 @@ class NonlinearEstimator:
         sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
         names = tuple(f"c{i}" for i in range(1, p + 1)) + ("d_plus", "slope_down", "d_minus")
         iv = {nm: (float(theta[i] - tq * sd[i]), float(theta[i] + tq * sd[i])) for i, nm in enumerate(names)}
-        ci = {"slope_up": (1.0, 1.0), "slope_down": iv["slope_down"], "d_plus": iv["d_plus"],
+        # slope_up and h_bar's constant are fixed by the normalisation (eqs. 4a-c): no interval
+        ci = {"slope_up": None, "slope_down": iv["slope_down"], "d_plus": iv["d_plus"],
               "d_minus": iv["d_minus"],
-              "h_coefficients": [(0.0, 0.0)] + [iv[f"c{i}"] for i in range(1, p + 1)],
+              "h_coefficients": [None] + [iv[f"c{i}"] for i in range(1, p + 1)],
               "X_hat": [(float(x - tq * s), float(x + tq * s)) for x, s in zip(data.X, data.se)]}
         fit = dict(fit, t_quantile=tq, confidence=self.confidence, param_se=sd.tolist())
         return NonlinearResult(
@@ -546,6 +570,37 @@ class NonlinearEstimator:
             levels=tuple(float(u) for u in data.U), X_hat=tuple(float(x) for x in data.X),
             X_hat_se=tuple(float(s) for s in data.se), flat_up=int(flat_up), flat_down=int(flat_down),
             method=self.method, evidence=evidence, warnings=tuple(dict.fromkeys(warns)), fit=fit)
+
+
+def undetermined(res: NonlinearResult, width: float) -> NonlinearResult:
+    """``res`` with every estimate whose interval cannot stand as one
+    (:func:`hwid.identify.determinable.interval_flaw`: not finite, of zero width, a border's wider
+    than the input range ``width`` the staircases explore, a slope's reaching zero) reported as
+    undetermined: interval None and the reason, one warning line each; and the fit's adequacy where
+    no degree of freedom is left to judge it."""
+    why = {}
+    for name in ("d_plus", "d_minus", "slope_down"):
+        flaw = determinable.interval_flaw(getattr(res, name), res.ci[name],
+                                          None if name == "slope_down" else width, positive=name == "slope_down")
+        if flaw:
+            why[name] = flaw
+    for i, (c, interval) in enumerate(zip(res.h_coefficients, res.ci["h_coefficients"])):
+        flaw = determinable.interval_flaw(c, interval) if i else None
+        if flaw:
+            why[f"c{i}"] = flaw
+    dof = int(res.fit.get("dof", 1))
+    if dof < 1:
+        why["adequacy"] = (f"{len(res.levels)} levels for {res.degree + 3} parameters: the model passes through "
+                           "every level, so its chi-square cannot judge it; add levels to either staircase")
+    if not why:
+        return res
+    ci = dict(res.ci)
+    for name in ("d_plus", "d_minus", "slope_down"):
+        if name in why:
+            ci[name] = None
+    ci["h_coefficients"] = [None if f"c{i}" in why else v for i, v in enumerate(res.ci["h_coefficients"])]
+    warns = tuple(dict.fromkeys(list(res.warnings) + [f"undetermined {k}: {v}" for k, v in why.items()]))
+    return replace(res, ci=ci, warnings=warns, undetermined={**res.undetermined, **why})
 
 
 # ------------------------------------------------------------------------------------ run

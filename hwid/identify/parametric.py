@@ -60,13 +60,19 @@ class RationalFit:
         return np.column_stack([self.poles.real - q * se[:, 0], self.poles.real + q * se[:, 0],
                                 self.poles.imag - q * se[:, 1], self.poles.imag + q * se[:, 1]])
 
+    def _poles_ci_plain(self) -> list:
+        """:attr:`poles_ci` as plain data; a real pole's imaginary part is 0 by the structure, not
+        estimated: its interval is None (not ``[0, 0]``)."""
+        return [row[:2] + ([None, None] if p.imag == 0.0 and row[2] == row[3] else row[2:])
+                for p, row in zip(self.poles, self.poles_ci.tolist())]
+
     def to_dict(self) -> dict:
         se = np.sqrt(np.maximum(np.stack([self.poles_cov[:, 0, 0], self.poles_cov[:, 1, 1]], 1), 0)) \
             if self.poles.size else np.zeros((0, 2))
         return {"num": [float(x) for x in self.num], "den": [float(x) for x in self.den],
                 "delay": float(self.delay), "delay_se": float(self.delay_se),
                 "poles": [[float(p.real), float(p.imag)] for p in self.poles],
-                "poles_se": se.tolist(), "poles_ci": self.poles_ci.tolist(),
+                "poles_se": se.tolist(), "poles_ci": self._poles_ci_plain(),
                 "order": [int(self.order[0]), int(self.order[1])], "chi2": float(self.chi2),
                 "dof": int(self.dof), "aicc": float(self.aicc), "criterion": "aicc",
                 "candidates": list(self.candidates)}

@@ -15,6 +15,10 @@ from hwid.blocks.linear import LinearBlock
 from hwid.blocks.static import PolynomialH
 from hwid.model import Actuator, HWModel, InputNonlinearity
 
+#: the parameters the normalisation of eqs. (4a-c) fixes, never estimated: their interval is None
+#: and this is why (``h_bar``'s constant ``c0``; ``slope_up`` where a result reports it)
+FIXED = {"slope_up": "fixed by the normalisation S^a = 1", "c0": "fixed by the normalisation h(0) = 0"}
+
 
 @dataclass(frozen=True)
 class NonlinearResult:
@@ -47,6 +51,8 @@ class NonlinearResult:
     evidence: str
     warnings: tuple[str, ...]
     fit: dict = field(default_factory=dict)   # diagnostics: chi2, dof, n_up, selection table, ...
+    # {parameter: reason} for what the staircases cannot determine; its interval in ``ci`` is None
+    undetermined: dict = field(default_factory=dict)
 
     def input_nonlinearity(self) -> InputNonlinearity:
         """The normalised ``F_bar`` (eq. 4a) as an :class:`hwid.model.InputNonlinearity`."""
@@ -67,25 +73,29 @@ class NonlinearResult:
             "n_up": int(self.fit.get("n_up", len(self.levels))),
         }
         for key, val in self.ci.items():
-            d[f"{key}_ci"] = [list(v) for v in val] if key in ("h_coefficients", "X_hat") else list(val)
+            d[f"{key}_ci"] = [_interval(v) for v in val] if key in ("h_coefficients", "X_hat") else _interval(val)
         d.update({"evidence": self.evidence, "warnings": list(self.warnings), "method": self.method,
                   "w_range": list(self.w_range), "param_names": list(self.param_names),
-                  "cov": np.asarray(self.cov).tolist()})
+                  "cov": np.asarray(self.cov).tolist(), "fixed": dict(FIXED),
+                  "undetermined": dict(self.undetermined)})
         d["fit"] = {k: v for k, v in self.fit.items()}
         return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "NonlinearResult":
-        """Inverse of :meth:`to_dict`."""
-        def pairs(v):
-            return [tuple(float(x) for x in p) for p in np.asarray(v, float).reshape(-1, 2)]
+        """Inverse of :meth:`to_dict`; also reads a file written before the parameters fixed by the
+        normalisation had no interval (``slope_up`` and h_bar's constant were ``[1, 1]``, ``[0, 0]``)."""
+        undetermined = dict(d.get("undetermined") or {})
         ci = {}
         for key in ("slope_up", "slope_down", "d_plus", "d_minus"):
             if f"{key}_ci" in d:
-                ci[key] = tuple(float(x) for x in np.ravel(d[f"{key}_ci"]))
+                ci[key] = None if key in FIXED else stored_interval(d[f"{key}_ci"])
         for key in ("h_coefficients", "X_hat"):
             if f"{key}_ci" in d:
-                ci[key] = pairs(d[f"{key}_ci"])
+                v = d[f"{key}_ci"]
+                ci[key] = [stored_interval(p) for p in (v if isinstance(v, (list, tuple)) else np.asarray(v))]
+        if ci.get("h_coefficients"):
+            ci["h_coefficients"][0] = None
         tup = lambda v: tuple(float(x) for x in np.ravel(v))  # noqa: E731
         return cls(type=str(d["type"]), slope_up=float(d["slope_up"]), slope_down=float(d["slope_down"]),
                    d_plus=float(d["d_plus"]), d_minus=float(d["d_minus"]),
@@ -94,7 +104,8 @@ class NonlinearResult:
                    param_names=tuple(str(x) for x in d["param_names"]), levels=tup(d["levels"]),
                    X_hat=tup(d["X_hat"]), X_hat_se=tup(d["X_hat_se"]), flat_up=int(d["flat_up"]),
                    flat_down=int(d["flat_down"]), method=str(d["method"]), evidence=str(d["evidence"]),
-                   warnings=tuple(str(w) for w in (d.get("warnings") or [])), fit=dict(d.get("fit") or {}))
+                   warnings=tuple(str(w) for w in (d.get("warnings") or [])), fit=dict(d.get("fit") or {}),
+                   undetermined=undetermined)
 
 
 @dataclass(frozen=True)
@@ -183,6 +194,8 @@ class WholeResult:
     selection: tuple[dict, ...]
     warnings: tuple[str, ...] = ()
     actuator: Actuator | None = None
+    # {parameter: reason} for what the records cannot determine; its interval in ``ci`` is None
+    undetermined: dict = field(default_factory=dict)
 
     def model(self) -> HWModel:
         """The model that was fitted: F, G (with its delay), h_bar and the actuator ahead of F."""
@@ -195,7 +208,9 @@ class WholeResult:
                 "d_minus": self.d_minus, "h_coefficients": list(self.h_coefficients),
                 "degree": len(self.h_coefficients) - 1, "num": list(self.num), "den": list(self.den),
                 "delay": self.delay, "structure": self.structure,
-                **{f"{k}_ci": [list(x) for x in v] if k == "h_coefficients" else list(v) for k, v in self.ci.items()},
+                **{f"{k}_ci": [_interval(x) for x in v] if k == "h_coefficients" else _interval(v)
+                   for k, v in self.ci.items()},
+                "fixed": dict(FIXED), "undetermined": dict(self.undetermined),
                 "sigma": self.sigma, "rms": self.rms, "samples": self.samples,
                 "initial_states": self.initial_states, "selection": list(self.selection),
                 "warnings": list(self.warnings),
@@ -203,14 +218,14 @@ class WholeResult:
 
     @classmethod
     def from_dict(cls, d: dict) -> "WholeResult":
-        """Inverse of :meth:`to_dict`."""
-        ci = {k: tuple(d[f"{k}_ci"]) for k in ("slope_down", "d_plus", "d_minus")}
-        ci["h_coefficients"] = [tuple(p) for p in d["h_coefficients_ci"]]
+        """Inverse of :meth:`to_dict` (h_bar's constant, ``[0, 0]`` in older files, has no interval)."""
+        ci = {k: stored_interval(d[f"{k}_ci"]) for k in ("slope_down", "d_plus", "d_minus")}
+        ci["h_coefficients"] = [None] + [stored_interval(p) for p in d["h_coefficients_ci"][1:]]
         return cls(str(d["type"]), float(d["slope_down"]), float(d["d_plus"]), float(d["d_minus"]),
                    tuple(d["h_coefficients"]), tuple(d["num"]), tuple(d["den"]), float(d["delay"]),
                    str(d["structure"]), ci, float(d["sigma"]), float(d["rms"]), int(d["samples"]),
                    dict(d["initial_states"]), tuple(d["selection"]), tuple(d.get("warnings", ())),
-                   Actuator.from_dict(d.get("actuator")))
+                   Actuator.from_dict(d.get("actuator")), dict(d.get("undetermined") or {}))
 
 
 def first_order_fallback(lin: LinearResult) -> tuple[list, list]:
@@ -254,24 +269,27 @@ def model_from_stages(nl: NonlinearResult, lin: LinearResult, notes: list | None
 
 
 def format_summary(result: NonlinearResult) -> str:
-    """A readable summary of a stage-1 result (what ``hwid identify-nonlinear`` prints)."""
+    """A readable summary of a stage-1 result (what ``hwid identify-nonlinear`` prints): each
+    estimate with its interval, or ``undetermined`` with the reason where the staircases do not
+    determine it."""
     def pm(key):
-        v = getattr(result, key)
-        lo, hi = result.ci[key]
-        return f"{v:.6g}  [{lo:.6g}, {hi:.6g}]"
+        return interval_text(getattr(result, key), result.ci[key])
     conf = result.fit.get("confidence", 0.95)
     lines = [f"input nonlinearity: {result.type}   ({result.evidence})",
              f"normalised model (eqs. 4a-c), {100 * conf:g} % intervals; method {result.method}:",
-             "  slope_up   = 1 (normalisation)",
+             f"  slope_up   = 1 ({FIXED['slope_up']})",
              f"  slope_down = {pm('slope_down')}",
              f"  d_plus     = {pm('d_plus')}",
              f"  d_minus    = {pm('d_minus')}",
              f"  h degree p = {result.degree}" + ("" if "chi2" not in result.fit else
                                                   f"   (joint chi2 = {result.fit['chi2']:.4g} for {result.fit['dof']} dof)"),
-             "  h coefficients (ascending powers):"]
-    for i, (c, (lo, hi)) in enumerate(zip(result.h_coefficients, result.ci["h_coefficients"])):
+             "  h coefficients (ascending powers):",
+             f"    c0 = 0 ({FIXED['c0']})"]
+    for i, (c, ci) in enumerate(zip(result.h_coefficients, result.ci["h_coefficients"])):
         if i:
-            lines.append(f"    c{i} = {c:.6g}  [{lo:.6g}, {hi:.6g}]")
+            lines.append(f"    c{i} = {interval_text(c, ci)}")
+    for name, why in result.undetermined.items():
+        lines.append(f"  undetermined {name}: {why}")
     if result.type == "backlash":
         lines.append(f"  horizontal paths: j_a = {result.flat_up}, j_d = {result.flat_down}")
     else:
@@ -339,12 +357,12 @@ class HistoryResult:
                 "p_value": self.p_value, "misfit": self.misfit,
                 "levels": [vars(lv) for lv in self.levels], "selection": list(self.table),
                 "warnings": list(self.warnings), "cov": [list(row) for row in self.cov],
-                "param_names": list(self.param_names), "undetermined": dict(self.undetermined)}
+                "param_names": list(self.param_names), "fixed": dict(FIXED), "undetermined": dict(self.undetermined)}
 
     @classmethod
     def from_dict(cls, d: dict) -> "HistoryResult":
         ci = {k: _interval(v) for k, v in d["ci"].items() if k != "h_coefficients"}
-        ci["h_coefficients"] = [_interval(v) for v in d["ci"]["h_coefficients"]]
+        ci["h_coefficients"] = [None] + [_interval(v) for v in d["ci"]["h_coefficients"][1:]]
         return cls(d["type"], float(d["slope_down"]), float(d["d_plus"]), float(d["d_minus"]),
                    tuple(d["h_coefficients"]), ci, float(d["chi2"]), int(d["dof"]), float(d["p_value"]),
                    bool(d["misfit"]), tuple(Level(**lv) for lv in d["levels"]), tuple(d["selection"]),
@@ -353,8 +371,17 @@ class HistoryResult:
 
 
 def _interval(v):
-    """An interval as JSON: ``[lo, hi]``, or None where the parameter is undetermined."""
+    """An interval as JSON: ``[lo, hi]``, or None where the parameter is not estimated."""
     return None if v is None else [float(x) for x in v]
+
+
+def stored_interval(v) -> tuple[float, float] | None:
+    """An interval as read back from JSON or HDF5: ``(lo, hi)``, or None for ``null`` and for the
+    ``[NaN, NaN]`` that stands for "no interval" in a numeric dataset."""
+    if v is None:
+        return None
+    lo, hi = (float(x) for x in np.ravel(np.asarray(v, float)))
+    return None if np.isnan(lo) and np.isnan(hi) else (lo, hi)
 
 
 def interval_text(value: float, interval, digits: int = 6) -> str:
@@ -376,7 +403,8 @@ def format_history(res: HistoryResult) -> str:
              f"  dead band d+ - d- = {interval_text(res.dead_band, ci['dead_band'])}",
              f"  S^d = {interval_text(res.slope_down, ci['slope_down'])}",
              f"  h_bar degree {len(res.h_coefficients) - 1}: {', '.join(f'{c:.4g}' for c in res.h_coefficients)}"
-             + ("  (undetermined)" if "h_coefficients" in und else ""),
+             f"  (c0 {FIXED['c0']})" + ("  (undetermined)" if "h_coefficients" in und else "")
+             + "".join(f"  ({k} undetermined)" for k in und if k[:1] == "c" and k[1:].isdigit()),
              f"  {sum(lv.scored for lv in res.levels)} levels scored; chi2 = {res.chi2:.4g} on {res.dof} dof "
              f"(p = {res.p_value:.2g})"]
     return "\n".join(lines)

@@ -31,6 +31,7 @@ import numpy as np
 from scipy import optimize, special
 
 from hwid import HwidError
+from hwid.identify import determinable
 from hwid.identify.defaults import MAX_DEGREE, MAX_NFEV
 from hwid.identify.g_structure import STRUCTURES, Structure, g_from_params, g_params_from, structure_of  # noqa: F401
 from hwid.identify.result import WholeResult
@@ -239,6 +240,8 @@ class WholeModelFit:
             wider, *_ = self._intervals(*richer, richer[0].h(richer[1]))
             for name in ("d_plus", "d_minus", "slope_down"):
                 ci[name] = (min(ci[name][0], wider[name][0]), max(ci[name][1], wider[name][1]))
+        ci, why = _undetermined(prob, theta, ci, f, h)
+        warnings += [f"undetermined {name}: {reason}" for name, reason in why.items()]
         if prob.degree == self.max_degree:
             warnings.append(f"h_bar's degree is the highest tried ({self.max_degree}); a higher one may fit better")
         init = {rec.name: {"gear": gear, "rest": rest} for rec, (gear, rest) in zip(prob.records, states)}
@@ -248,7 +251,8 @@ class WholeModelFit:
                 init[rec.name]["position"] = pos
         return WholeResult(f.type, f.slope_down, f.d_plus, f.d_minus, tuple(float(c) for c in h),
                            g.num, g.den, g.delay, str(prob.structure), ci, float(np.sqrt(s2)),
-                           float(np.sqrt(np.mean(r * r))), int(r.size), init, tuple(table), tuple(warnings), act)
+                           float(np.sqrt(np.mean(r * r))), int(r.size), init, tuple(table), tuple(warnings), act,
+                           undetermined=why)
 
     @staticmethod
     def _intervals(prob: Problem, theta, h) -> tuple[dict, float, np.ndarray, list]:
@@ -286,9 +290,37 @@ class WholeModelFit:
             sd = float(np.sqrt(max(grad @ cov @ grad, 0.0)))
             ci[name] = (value - z * sd, value + z * sd)
         sd_h = np.sqrt(np.clip(np.diag(cov)[prob.n_outer:], 0, None))
-        ci["h_coefficients"] = [(0.0, 0.0)] + [(float(c - z * s), float(c + z * s)) for c, s in zip(h[1:], sd_h)]
+        ci["h_coefficients"] = [None] + [(float(c - z * s), float(c + z * s)) for c, s in zip(h[1:], sd_h)]
         return ci, s2, r, warnings
 
+
+
+def _undetermined(prob: Problem, theta, ci: dict, f, h) -> tuple[dict, dict]:
+    """``ci`` with every interval that cannot stand as one set to None, and ``{parameter: reason}``:
+    not finite or of zero width (:func:`hwid.identify.determinable.interval_flaw`), or the estimate
+    at the edge of its search range (S^d at 0.05 or 20, the dead band at twice the input's range: the
+    records do not bound it; a dead band at its floor is a plant without play, and stays)."""
+    span, dt, width = extent(prob.records)
+    lo, hi = prob.bounds(width, span, dt)
+    why = {}
+    for name, i in (("slope_down", 1), ("d_minus", 2)):
+        margin = 1e-6 * (hi[i] - lo[i])
+        if not (lo[i] + margin < theta[i] or i == 2) or not theta[i] < hi[i] - margin:
+            why[name] = (f"the estimate sits at the edge of its search range [{np.exp(lo[i]):.4g}, "
+                         f"{np.exp(hi[i]):.4g}] (of {'S^d' if i == 1 else 'd+ - d-'}): these records do not bound it")
+    for name in ("d_plus", "d_minus", "slope_down"):
+        flaw = determinable.interval_flaw(getattr(f, name), ci[name], positive=name == "slope_down")
+        if flaw and name not in why:
+            why[name] = flaw
+    for i, (c, interval) in enumerate(zip(h, ci["h_coefficients"])):
+        flaw = determinable.interval_flaw(c, interval) if i else None
+        if flaw:
+            why[f"c{i}"] = flaw
+    if not why:
+        return ci, why
+    out = {k: (None if k in why else v) for k, v in ci.items()}
+    out["h_coefficients"] = [None if f"c{i}" in why else v for i, v in enumerate(ci["h_coefficients"])]
+    return out, why
 
 
 class _Search:

@@ -14,6 +14,7 @@ import yaml
 
 from hwid import __version__, paper
 from hwid.blocks.static import PolynomialH
+from hwid.identify.result import FIXED
 from hwid.report.rundir import RunData
 from hwid.report.views import StaircaseView, true_phase_lag
 
@@ -44,6 +45,21 @@ def _pm(est, ci, digits: int = 4) -> str:
         return _num(est, digits)
     lo, hi = ci
     return f"{_num(est, digits)} <span class='ci'>[{_num(lo, digits)}, {_num(hi, digits)}]</span>"
+
+
+def _no_interval(name: str, undetermined: dict | None) -> str:
+    """Why a parameter has no interval: fixed by the normalisation (:data:`FIXED`), or the reason it
+    is undetermined."""
+    if name in FIXED:
+        return _html.escape(FIXED[name])
+    return "undetermined: " + _html.escape((undetermined or {}).get(name, "not determined by these data"))
+
+
+def _estimate(est, ci, name: str, undetermined: dict | None, digits: int = 4) -> str:
+    """``estimate [lo, hi]``, or the estimate and why it has no interval."""
+    if ci is None:
+        return f"{_num(est, digits)} <span class='ci'>({_no_interval(name, undetermined)})</span>"
+    return _pm(est, ci, digits)
 
 
 def _tr(cells, head: bool = False) -> str:
@@ -123,7 +139,7 @@ def params_html(run: RunData) -> str:
     labels = {"slope_up": "S<sup>a</sup> (normalised)", "slope_down": "S<sup>d</sup>/S<sup>a</sup>",
               "d_plus": "d<sup>+</sup>", "d_minus": "d<sup>−</sup>"}
     for key, label in labels.items():
-        cells = [label, _pm(getattr(nl, key), nl.ci.get(key)),
+        cells = [label, _estimate(getattr(nl, key), nl.ci.get(key), key, nl.undetermined),
                  _num(getattr(truth.input, key) if truth is not None else None)]
         if run.is_paper:
             cells.append(_num(paper.BORDERS[key]) if key in paper.BORDERS else "")
@@ -132,7 +148,8 @@ def params_html(run: RunData) -> str:
                  and isinstance(truth.output, PolynomialH) else np.array([]))
     for i, (c, ci) in enumerate(zip(nl.h_coefficients, nl.ci["h_coefficients"])):
         true_value = true_coef[i] if i < true_coef.size else (0.0 if true_coef.size else None)
-        cells = [f"h̄ c<sub>{i}</sub>", _pm(c, tuple(ci)), _num(true_value)] + ([""] if run.is_paper else [])
+        cells = [f"h̄ c<sub>{i}</sub>", _estimate(c, ci, f"c{i}", nl.undetermined), _num(true_value)] + \
+            ([""] if run.is_paper else [])
         rows.append(_tr(cells).replace("<tr>", f"<tr data-param='h_c{i}'>", 1))
     return f"<table class='params' id='params'>{''.join(rows)}</table>"
 
@@ -199,14 +216,19 @@ def batch_table_html(summary: dict) -> str:
     if not points:
         return "<p class='missing'>batch.h5 holds no sweep points yet.</p>"
     rows = [_tr(["point", "overrides", "runs", "estimate", "truth", "bias", "std", "RMSE", "coverage",
-                 "CRLB sd"], True)]
+                 "runs without interval", "CRLB sd"], True)]
     for i, p in enumerate(points):
         overrides = ", ".join(f"{k}={v}" for k, v in (p.get("overrides") or {}).items()) or "base"
         for name, s in p.get("stats", {}).items():
             rows.append(_tr([str(i), _html.escape(overrides), str(p.get("n_runs", "")), _html.escape(name),
                              _num(s.get("truth")), _num(s.get("bias"), 3), _num(s.get("std"), 3),
-                             _num(s.get("rmse"), 3), _num(s.get("coverage"), 3), _num(s.get("crlb_std"), 3)]))
-    return f"<details><summary>summary table</summary><table id='batch'>{''.join(rows)}</table></details>"
+                             _num(s.get("rmse"), 3), _num(s.get("coverage"), 3),
+                             str(int(s["without_interval"])) if "without_interval" in s else "",
+                             _num(s.get("crlb_std"), 3)]))
+    note = ("<p class='note'>Coverage counts only the runs whose estimate has a 95 % interval: a parameter "
+            "fixed by the normalisation (h̄'s constant) or left undetermined by a run's data has none, and is "
+            "neither covered nor missed; those runs are counted in “runs without interval”.</p>")
+    return f"<details><summary>summary table</summary><table id='batch'>{''.join(rows)}</table>{note}</details>"
 
 
 def diagnosis_html(diagnosis: dict) -> str:
@@ -298,12 +320,15 @@ def compare_html(compare: dict) -> str:
 def whole_html(whole) -> str:
     """The whole-model output-error fit: estimates with 95 % intervals, and its selection table."""
     rows = [_tr(["parameter", "estimate", "95 % interval"], True)]
+    und = whole.undetermined
+
+    def interval(ci, name):
+        return _no_interval(name, und) if ci is None else f"[{_num(ci[0])}, {_num(ci[1])}]"
+
     for name in ("d_plus", "slope_down", "d_minus"):
-        lo, hi = whole.ci[name]
-        rows.append(_tr([name, _num(getattr(whole, name)), f"[{_num(lo)}, {_num(hi)}]"]))
-    for i, (c, (lo, hi)) in enumerate(zip(whole.h_coefficients, whole.ci["h_coefficients"])):
-        if i:
-            rows.append(_tr([f"h_bar c{i}", _num(c), f"[{_num(lo)}, {_num(hi)}]"]))
+        rows.append(_tr([name, _num(getattr(whole, name)), interval(whole.ci[name], name)]))
+    for i, (c, ci) in enumerate(zip(whole.h_coefficients, whole.ci["h_coefficients"])):
+        rows.append(_tr([f"h_bar c{i}", _num(c), interval(ci, f"c{i}")]))
     selection = [_tr(["type", "G structure", "degree", "RSS", "parameters", "criterion"], True)]
     for s in sorted(whole.selection, key=lambda s: s["aic"]):
         selection.append(_tr([s["type"], s["structure"], str(s["degree"]), _num(s["rss"]), str(s["parameters"]),
@@ -321,14 +346,13 @@ def history_html(hist) -> str:
     und = getattr(hist, "undetermined", {}) or {}
 
     def interval(ci, name):
-        return (f"undetermined: {_html.escape(und.get(name, 'not determined by these levels'))}" if ci is None
-                else f"[{_num(ci[0])}, {_num(ci[1])}]")
+        return _no_interval(name, und) if ci is None else f"[{_num(ci[0])}, {_num(ci[1])}]"
 
     for name in ("d_plus", "d_minus", "dead_band", "slope_down"):
         rows.append(_tr([name, _num(getattr(hist, name)), interval(hist.ci[name], name)]))
     for i, (c, ci) in enumerate(zip(hist.h_coefficients, hist.ci["h_coefficients"])):
-        if i:
-            rows.append(_tr([f"h_bar c{i}", _num(c), interval(ci, "h_coefficients")]))
+        rows.append(_tr([f"h_bar c{i}", _num(c), interval(ci, f"c{i}" if i == 0 or f"c{i}" in und
+                                                          else "h_coefficients")]))
     levels = [_tr(["record", "#", "u", "settled output", "standard error", "samples", "scored"], True)]
     for lv in hist.levels:
         levels.append(_tr([_html.escape(lv.record), str(lv.index), _num(lv.u), _num(lv.x), _num(lv.se), str(lv.n),
