@@ -9,7 +9,7 @@ from typing import Optional
 import typer
 
 from hwid import HwidError, __version__
-from hwid.rundir import HISTORY, LINEAR, RIG_JOURNAL
+from hwid.rundir import HISTORY, NONLINEAR
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Identify Hammerstein-Wiener systems with Backlash / Backlash-Inverse input "
@@ -67,6 +67,23 @@ def simulate(config: Path = typer.Argument(..., help="Config YAML."),
     typer.echo(f"wrote {path}")
 
 
+class _Said:
+    """The path's lines as a command prints them: warnings on stderr, the rest on stdout; what was
+    said is remembered so the command's own summary does not repeat it."""
+
+    def __init__(self):
+        self.lines: set[str] = set()
+
+    def __call__(self, line: str) -> None:
+        self.lines.add(line)
+        typer.echo(line, err=line.startswith("warning: "))
+
+    def warnings(self, messages) -> None:
+        for msg in messages:
+            if f"warning: {msg}" not in self.lines and msg not in self.lines:
+                self(f"warning: {msg}")
+
+
 @app.command("identify-linear")
 def identify_linear(config: Path = typer.Argument(..., help="Config YAML."),
                     nonlinear: Path = typer.Option(..., "--nonlinear", help="Stage 1 result DIR/nonlinear.h5 "
@@ -74,32 +91,38 @@ def identify_linear(config: Path = typer.Argument(..., help="Config YAML."),
                     out: Path = typer.Option(..., "--out", help="Output directory (linear.h5 goes here)."),
                     json_out: Optional[Path] = typer.Option(None, "--json", help="Also write the result as JSON.")):
     """Stage 2 (Section 5): sines behind the estimated pre-compensator, G(jw), a rational G(s); OUT/linear.h5.
-    For a recorded plant: from its steady periodic stretches, pre-compensated or not."""
-    import warnings
+    For a recorded plant: from its steady periodic stretches, pre-compensated or not. The same step
+    'hwid run' takes (hwid.identify.path.stage2)."""
     from hwid.config import load as load_config
     from hwid import results
-    from hwid.identify import linear as linear_stage
+    from hwid.identify.path import g_undetermined, stage2
     cfg = load_config(config)
     out = _out_dir(out)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", linear_stage.ExtrapolationWarning)   # listed below from the result
-        if cfg.plant.kind == "recorded":    # the records' periodic stretches, with stage 1 from history.h5
-            from hwid.identify.periodic import identify_periodic
-            from hwid.recorded import load_records
-            hist = results.read_history(nonlinear / HISTORY if nonlinear.is_dir() else nonlinear, cfg)
-            res, records = identify_periodic(cfg, load_records(cfg), hist)
-        else:
-            nl = results.read_nonlinear(nonlinear, cfg)
-            res, records = linear_stage.identify_linear(cfg, nl, journal_dir=out / RIG_JOURNAL)
-    path = results.write_linear(out / LINEAR, cfg, res, records)
+    said = _Said()
+    if cfg.plant.kind == "recorded":    # the records' periodic stretches, with stage 1 from history.h5
+        from hwid.recorded import load_records
+        hist = results.read_history(nonlinear / HISTORY if nonlinear.is_dir() else nonlinear, cfg)
+        two = stage2(cfg, hist, records=load_records(cfg), out_dir=out, echo=said)
+        if two.linear is None:
+            raise HwidError(f"{config}: stage 2 from periodic stretches: {two.why}; 'hwid run' fits the whole "
+                            "model to the records instead")
+    else:
+        nl = results.read_nonlinear(nonlinear / NONLINEAR if nonlinear.is_dir() else nonlinear, cfg)
+        two = stage2(cfg, nl, out_dir=out, echo=said)
+        if two.linear is None:
+            raise HwidError(f"{config}: {two.why}: stage 1 did not identify F, so stage 2 is not run; "
+                            "'hwid run' fits the whole model to the staircases and sines instead")
+    res = two.linear
     if json_out is not None:
         results.write_json(json_out, res.to_dict())
     for i, w in enumerate(res.frequencies):
         typer.echo(f"w = {w:g} rad/s: |G| = {res.gain[i]:.5g} [{res.gain_ci[i][0]:.5g}, {res.gain_ci[i][1]:.5g}]"
                    f"  phi = {res.phase[i]:.5g} [{res.phase_ci[i][0]:.5g}, {res.phase_ci[i][1]:.5g}] rad")
-    for msg in res.warnings:
-        typer.echo(f"warning: {msg}", err=True)
-    typer.echo(f"wrote {path}")
+    said.warnings(res.warnings)
+    why = "" if cfg.plant.kind == "recorded" else g_undetermined(res)
+    if why:
+        typer.echo(f"{why}: the two stages cannot stand for the plant; 'hwid run' fits the whole model instead")
+    typer.echo(f"wrote {two.paths['linear']}")
 
 
 @app.command("identify-nonlinear")
@@ -109,41 +132,33 @@ def identify_nonlinear(config: Path = typer.Argument(..., help="Config YAML."),
                        out: Path = typer.Option(..., "--out", help="Output directory (nonlinear.h5 goes here)."),
                        json_out: Optional[Path] = typer.Option(None, "--json", help="Also write the result as JSON.")):
     """Stage 1 (Section 4): staircases -> h, the backlash borders and their type; OUT/nonlinear.h5.
-    For a recorded plant: stage 1 from its levels in whatever order they were recorded; OUT/history.h5."""
+    For a recorded plant: stage 1 from its levels in whatever order they were recorded; OUT/history.h5.
+    The same step 'hwid run' takes (hwid.identify.path.stage1)."""
     from hwid.config import load as load_config
-    from hwid.identify import deadzone_ahead
-    from hwid.identify.nonlinear import identify_nonlinear as run_stage1
-    from hwid.identify.result import format_summary
-    from hwid.results import write_nonlinear
+    from hwid.identify.path import input_moves, stage1
+    from hwid.identify.result import format_history, format_summary
     cfg = load_config(config)
     out = _out_dir(out)
+    said = _Said()
     if cfg.plant.kind == "recorded":
-        _identify_history(cfg, out, json_out)
-        return
-    res, records = run_stage1(cfg, data=data, journal_dir=out / RIG_JOURNAL)
-    res = deadzone_ahead.noted(cfg, res, records)
-    _say_stage1(res, write_nonlinear(out, cfg, res, records), json_out, format_summary(res))
-
-
-def _say_stage1(res, path: Path, json_out: Optional[Path], summary: str) -> None:
-    """The JSON (where asked), the summary, the warnings on stderr, where the result went."""
-    from hwid.results import write_json
+        from hwid.recorded import load_records
+        records = load_records(cfg)        # a file that does not read is its own error, not stage 1's
+        try:
+            one = stage1(cfg, records=records, out_dir=out, echo=said)
+        except HwidError as err:     # where the path fits the whole model instead, say so
+            input_moves(cfg, records)   # ... unless nothing can be identified from these records
+            line = str(err) if "hwid run" in str(err) else f"{err}; 'hwid run' fits the whole model to these records"
+            raise HwidError(line) from None
+        summary, path = format_history(one.result), one.paths["history"]
+    else:
+        one = stage1(cfg, data=data, out_dir=out, echo=said)
+        summary, path = format_summary(one.result), one.paths["nonlinear"]
     if json_out is not None:
-        write_json(json_out, res.to_dict())
+        from hwid.results import write_json
+        write_json(json_out, one.result.to_dict())
     typer.echo(summary)
-    for msg in res.warnings:
-        typer.echo(f"warning: {msg}", err=True)
+    said.warnings(one.result.warnings)
     typer.echo(f"wrote {path}")
-
-
-def _identify_history(cfg, out: Path, json_out: Optional[Path]) -> None:
-    """Stage 1 of a recorded plant from its levels (``hwid.identify.history``)."""
-    from hwid.identify.history import identify_recorded
-    from hwid.identify.result import format_history
-    from hwid.recorded import load_records
-    from hwid.results import write_history
-    res = identify_recorded(cfg, load_records(cfg))
-    _say_stage1(res, write_history(out / HISTORY, cfg, res), json_out, format_history(res))
 
 
 def _one_line(msg: str) -> str:

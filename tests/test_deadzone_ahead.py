@@ -57,16 +57,27 @@ def test_stage_1_behind_the_dead_zone_finds_it_and_the_papers_borders(stage1):
         assert lo <= true <= hi, (name, lo, hi)
 
 
-def test_stage_1_tells_its_user_of_the_dead_zone(stage1):
-    """`hwid identify-nonlinear` and `hwid run` keep the paper's model and say where its levels fit."""
+def test_stage_1_tells_its_user_of_the_dead_zone(stage1, tmp_path):
+    """Stage 1 as `hwid identify-nonlinear` and `hwid run` take it (:func:`hwid.identify.path.stage1`):
+    the result behind the dead zone it finds, marked so, in ``nonlinear.h5`` too, for the stage 2
+    `hwid identify-linear` reads from it (driven through the dead zone's inverse) and the model; and said."""
+    from hwid.identify import path
+    from hwid.results import read_nonlinear
     cfg, plain, records = stage1
-    noted = deadzone_ahead.noted(cfg, plain, records)
-    assert (noted.d_plus, noted.d_minus, noted.degree) == (plain.d_plus, plain.d_minus, plain.degree)
-    assert "behind a dead zone ahead of F" in noted.warnings[-1]
-    found = noted.fit["deadzone_ahead"]
+    said = []
+    one = path.stage1(cfg, data={rec.name: rec for rec in records}, out_dir=tmp_path, echo=said.append)
+    r = one.result
+    assert path.deadzone_behind(read_nonlinear(one.paths["nonlinear"], cfg)) == path.deadzone_behind(r) > 0
+    assert any("behind a dead zone" in line for line in said)
+    assert "behind a dead zone" in r.warnings[-1]
+    found = r.fit["deadzone_ahead"]
+    assert found["behind"] and path.deadzone_behind(r) == found["delta"]
     lo, hi = found["delta_ci"]
     assert lo <= R.TRUTH["input_deadzone_paper"]["delta"] <= hi
-    assert abs(found["d_plus"] - 0.5) < 0.03 and abs(found["d_minus"] + 0.5) < 0.03 and found["degree"] == 5
+    assert r.type == "backlash" and r.degree == 5
+    for name, true in (("d_plus", 0.5), ("slope_down", 1.0), ("d_minus", -0.5)):
+        lo, hi = r.ci[name]
+        assert lo <= true <= hi, (name, lo, hi)
 
 
 def test_a_plant_without_a_dead_zone_is_left_alone(tmp_path):

@@ -134,3 +134,118 @@ def test_a_recorded_runs_model_is_one_diagnose_accepts(tmp_path):
     s = json.loads((tmp_path / "d.json").read_text())
     assert s["model"]["fit"] == "whole" and s["model"]["source"] == "results"
     assert s["verdict"]["effect"] == "none"
+
+
+def _cli(*argv) -> None:
+    """``hwid ARGV`` in-process; it must succeed."""
+    from hwid.cli import main
+    with pytest.raises(SystemExit) as exit_:
+        main([str(a) for a in argv])
+    assert exit_.value.code in (0, None), argv
+
+
+def test_the_stage_commands_take_the_paths_steps_on_a_simulated_plant(tmp_path, capsys):
+    """A short paper config (the paper's backlash and h behind a fast G, two sines): ``hwid
+    identify-nonlinear`` then ``hwid identify-linear`` write the stage results ``hwid run`` writes,
+    to the last digit, and the two stages' model from them is ``run``'s model; the truth's borders
+    lie within stage 1's intervals and G's gains within stage 2's."""
+    import plants
+    from hwid.identify.path import stages_model
+    from hwid.pipeline import run
+    from hwid.results import read_linear, read_nonlinear
+    path = rigs.write(tmp_path / "paper.yaml", plants.config_text(plants.PAPER_FAST_G, **{
+        "protocols.sine": {"amplitude": 1.0, "frequencies": [1.0, 4.0], "periods": 3, "lead_in_periods": 1}}))
+    cfg = config.load(path)
+    ident = run(cfg, tmp_path / "run", report=False, echo=lambda *a: None)["identification"]
+    assert ident.route == "stages"
+    _cli("identify-nonlinear", path, "--out", tmp_path / "st", "--json", tmp_path / "nl.json")
+    said = capsys.readouterr().out
+    assert said.startswith("stage 1: backlash, d+ = ") and "input nonlinearity: backlash" in said
+    _cli("identify-linear", path, "--nonlinear", tmp_path / "st" / "nonlinear.h5", "--out", tmp_path / "st")
+    assert "stage 2: G(jw) at 2 frequencies" in capsys.readouterr().out
+    nl = read_nonlinear(tmp_path / "st" / "nonlinear.h5", cfg)
+    lin = read_linear(tmp_path / "st" / "linear.h5", cfg)
+    np.testing.assert_equal(nl.to_dict(), read_nonlinear(tmp_path / "run" / "nonlinear.h5", cfg).to_dict())
+    np.testing.assert_equal(lin.to_dict(), read_linear(tmp_path / "run" / "linear.h5", cfg).to_dict())
+    assert _params(stages_model(nl, lin)) == _params(ident.model)
+    truth = from_config(cfg.plant).normalised()
+    for name in ("d_plus", "slope_down", "d_minus"):
+        lo, hi = nl.ci[name]
+        assert lo <= getattr(truth.input, name) <= hi, name
+    for g, (lo, hi) in zip(np.abs(truth.linear.freqresp(lin.frequencies)), lin.gain_ci):
+        assert lo <= g <= hi
+
+
+def test_the_stage_commands_take_the_paths_steps_on_a_log(tmp_path):
+    """A recorded log of random levels and a sine of 12 periods (written as :func:`logs.write_log_csv` writes
+    one): ``hwid identify-nonlinear`` (``history.h5``) and ``hwid identify-linear --nonlinear DIR``
+    (``linear.h5``) give what ``hwid run`` reports beside its model, to the last digit; the truth's
+    dead band lies within stage 1's interval."""
+    from hwid.pipeline import run
+    from hwid.results import read_history, read_linear
+    cfg = config.loads(yaml.safe_dump(rigs.small()))
+    truth = from_config(cfg.plant)
+    rng = np.random.default_rng(4)
+    t = np.arange(int(12 * 2 * np.pi / 1.0 / DT)) * DT    # held less than half the log: the sine is read
+    u = np.concatenate([np.repeat(rng.uniform(-1.2, 1.2, 10), rng.integers(50, 70, 10)), 1.2 * np.sin(1.0 * t),
+                        np.repeat(rng.uniform(-1.2, 1.2, 4), 60)])
+    y = truth.simulate(u, DT, gear=0.0).x + 0.01 * rng.standard_normal(u.size)
+    path = logs.write_log_csv(tmp_path, u, y, DT, whole_enabled=False)
+    cfg = config.load(path)
+    ident = run(cfg, tmp_path / "run", report=False, echo=lambda *a: None)["identification"]
+    assert ident.history is not None and ident.linear is not None
+    _cli("identify-nonlinear", path, "--out", tmp_path / "st")
+    _cli("identify-linear", path, "--nonlinear", tmp_path / "st", "--out", tmp_path / "st")
+    hist = read_history(tmp_path / "st" / "history.h5", cfg)
+    assert hist.to_dict() == read_history(tmp_path / "run" / "history.h5", cfg).to_dict() == ident.history.to_dict()
+    np.testing.assert_equal(read_linear(tmp_path / "st" / "linear.h5", cfg).to_dict(),
+                            read_linear(tmp_path / "run" / "linear.h5", cfg).to_dict())
+    norm = truth.normalised().input
+    lo, hi = hist.ci["dead_band"]
+    assert lo <= norm.d_plus - norm.d_minus <= hi
+
+
+def test_identify_nonlinear_where_stage_1_cannot_be_read_points_to_run(tmp_path):
+    """A log of two levels: stage 1 cannot be read from it, and ``hwid run`` would fit the whole
+    model; ``hwid identify-nonlinear`` says so in one line, exit 2, and writes no stage 1."""
+    import contextlib
+    import io
+
+    from hwid.cli import main
+    cfg = config.loads(yaml.safe_dump(rigs.small()))
+    rng = np.random.default_rng(5)
+    u = np.concatenate([np.full(200, -0.8), 0.9 * np.sin(np.arange(800) * DT), np.full(200, 0.8)])
+    y = from_config(cfg.plant).simulate(u, DT, gear=0.0).x + 0.01 * rng.standard_normal(u.size)
+    path = logs.write_log_csv(tmp_path, u, y, DT)
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), pytest.raises(SystemExit) as exit_:
+        main(["identify-nonlinear", str(path), "--out", str(tmp_path / "st")])
+    assert exit_.value.code == 2
+    lines = err.getvalue().strip("\n").split("\n")
+    assert len(lines) == 1 and lines[0].startswith("hwid: error: ") and "hwid run" in lines[0]
+    assert not (tmp_path / "st" / "history.h5").exists()
+
+
+def test_identify_linear_behind_a_stage_1_that_did_not_identify_f_points_to_run(tmp_path, monkeypatch):
+    """A stage 1 whose pre-compensator would command the plant 5e21 units (a slow actuator's
+    unsettled levels): ``hwid run`` fits the whole model instead; ``hwid identify-linear`` says so
+    in one line, exit 2, and writes no stage 2."""
+    import contextlib
+    import io
+    from types import SimpleNamespace
+
+    import hwid.results
+    from hwid.cli import main
+    from hwid.model import InputNonlinearity
+    path = rigs.write(tmp_path / "small.yaml", rigs.small())
+    bad = SimpleNamespace(slope_down=5.18e21, d_plus=0.547, d_minus=0.0979, fit={},
+                          input_nonlinearity=lambda: InputNonlinearity("backlash_inverse", 1.0, 5.18e21, 0.547, 0.0979))
+    monkeypatch.setattr(hwid.results, "read_nonlinear", lambda p, cfg=None: bad)
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), pytest.raises(SystemExit) as exit_:
+        main(["identify-linear", str(path), "--nonlinear", str(tmp_path / "nonlinear.h5"),
+              "--out", str(tmp_path / "st")])
+    assert exit_.value.code == 2
+    lines = err.getvalue().strip("\n").split("\n")
+    assert len(lines) == 1 and "stage 2 is not run" in lines[0] and "'hwid run' fits the whole model" in lines[0]
+    assert not (tmp_path / "st" / "linear.h5").exists()

@@ -4,10 +4,11 @@ A lab log is whatever the operator did: holds from a fifth of G's settling time 
 plain sines, ramps, triangles, logger pauses between parts or one unbroken record, on a slow and a
 fast plant (:func:`logs.write_lab`: hwid's own chain, asymmetric backlash, ``h = w + 0.25 w^2``,
 noise of s.d. 0.02, written as a CSV in raw counts with jittered timestamps and a recorded config).
-Each session goes through ``hwid run``, ``hwid identify-nonlinear`` and ``hwid diagnose`` exactly as
-a user types them (:func:`hwid.cli.main` in-process, so an escaping exception fails the test with its
-own traceback). Allowed: exit 0, or exit 2 with one line ``hwid: error: ...``. A ``hwid run`` on a
-recorded config without the whole fit may exit 2 saying to enable it.
+Each session goes through ``hwid run``, ``hwid identify-nonlinear``, ``hwid identify-linear`` and
+``hwid diagnose`` exactly as a user types them (:func:`hwid.cli.main` in-process, so an escaping
+exception fails the test with its own traceback). Allowed: exit 0, or exit 2 with one line
+``hwid: error: ...``. A ``hwid run`` on a recorded config without the whole fit may exit 2 saying
+to enable it. The stage commands write what ``hwid run`` wrote of the same stages, to the last digit.
 
 Where stage 1 succeeds, the dead band it reports must be a number with an interval of positive
 width, or undetermined (interval None) with a reason -- never a zero-width interval.
@@ -112,19 +113,43 @@ def _dead_band_honest(path: Path) -> None:
         assert ci[1] > ci[0], f"zero-width dead band interval {ci}"
 
 
-def _check_session(session, commands=("run", "identify-nonlinear", "diagnose")) -> None:
+def _same_stages(tmp: Path, cmd: str, code: int, codes: dict) -> None:
+    """The stage commands take ``hwid run``'s own steps (:func:`hwid.identify.path.stage1`,
+    :func:`~hwid.identify.path.stage2`): what one writes, ``hwid run`` wrote beside its model, to
+    the last digit; where one cannot, ``hwid run`` did not either."""
+    from hwid.results import read_history, read_linear
+    name = {"identify-nonlinear": "history.h5", "identify-linear": "linear.h5"}[cmd]
+    ran, own = tmp / "run" / name, tmp / cmd / name
+    if code == 0 and ran.exists():
+        if cmd == "identify-nonlinear":
+            assert read_history(own).to_dict() == read_history(ran).to_dict()
+        else:
+            np.testing.assert_equal(read_linear(own).to_dict(), read_linear(ran).to_dict())
+    elif code == 2 and codes.get("run") == 0 and codes.get("identify-nonlinear") == 0:
+        assert not ran.exists(), f"hwid {cmd} refused what hwid run read"
+
+
+def _check_session(session, commands=("run", "identify-nonlinear", "identify-linear", "diagnose")) -> None:
     name, parts, one_record = session
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         cfg = logs.write_lab(tmp, parts=parts, one_record=one_record, linear=_plant(PLANTS[name]), seed=len(parts))
+        codes: dict = {}
         for cmd in commands:
             argv = [cmd, cfg, "--out", tmp / cmd]
             if cmd == "identify-nonlinear":
                 argv += ["--json", tmp / "stage1.json"]
+            if cmd == "identify-linear":
+                if codes.get("identify-nonlinear") != 0:
+                    continue
+                argv += ["--nonlinear", tmp / "identify-nonlinear"]
             code, err = _cli(argv)
+            codes[cmd] = code
             _allowed(code, err, f"hwid {cmd} ({name}, {[p.size for p in parts]}, one record {one_record})")
             if cmd == "identify-nonlinear" and code == 0:
                 _dead_band_honest(tmp / "stage1.json")
+            if cmd.startswith("identify-") and "run" in codes:
+                _same_stages(tmp, cmd, code, codes)
 
 
 COMMON = dict(deadline=None, derandomize=True, print_blob=True,
@@ -134,7 +159,7 @@ COMMON = dict(deadline=None, derandomize=True, print_blob=True,
 @settings(max_examples=6, **COMMON)
 @given(sessions())
 def test_stage1_commands_on_generated_sessions(session):
-    _check_session(session, commands=("run", "identify-nonlinear"))
+    _check_session(session, commands=("run", "identify-nonlinear", "identify-linear"))
 
 
 @pytest.mark.slow

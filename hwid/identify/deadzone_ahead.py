@@ -178,23 +178,3 @@ class ThroughDeadZone:
 
     def __getattr__(self, key):
         return getattr(self.plant, key)
-
-
-def noted(cfg, result, records):
-    """Stage 1's ``result`` with a warning, and ``fit["deadzone_ahead"]``, where its levels fit only
-    behind a dead zone ahead of F (:func:`find_deadzone`): what ``hwid identify-nonlinear`` and
-    ``hwid run`` tell a user whose actuator has one. The estimates stay the paper's model's; the
-    borders behind the dead zone are in the warning, and ``hwid diagnose`` names it."""
-    found = find_deadzone(cfg, result, records)
-    if found is None:
-        return result
-    r = found.result
-    lo, hi = found.delta_ci
-    msg = (f"the levels fit within their noise only behind a dead zone ahead of F, |u| < {found.delta:.4g} "
-           f"[{lo:.4g}, {hi:.4g}] (overdispersion {found.overdispersion_plain:.3g} without it, "
-           f"{found.overdispersion:.3g} with it): an actuator that does not move for small commands. Behind it F is "
-           f"a {r.type} with d+ = {r.d_plus:.4g}, S^d = {r.slope_down:.4g}, d- = {r.d_minus:.4g} and h has degree "
-           f"{r.degree}; the estimates above are the model's without it ('hwid diagnose' names it)")
-    fit = {**result.fit, "deadzone_ahead": {**found.to_dict(), "type": r.type, "d_plus": r.d_plus,
-                                            "slope_down": r.slope_down, "d_minus": r.d_minus, "degree": r.degree}}
-    return dataclasses.replace(result, warnings=tuple(result.warnings) + (msg,), fit=fit)

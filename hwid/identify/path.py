@@ -1,7 +1,8 @@
 """One identification path: the model of a config's plant, the same for every command.
 
-``hwid run``, ``hwid diagnose`` (live and from logs) and the Python API call :func:`identify`; what
-each used to do in its own copy is done here once.
+``hwid run``, ``hwid diagnose`` (live and from logs) and the Python API call :func:`identify`;
+``hwid identify-nonlinear`` and ``hwid identify-linear`` call its two steps, :func:`stage1` and
+:func:`stage2`, which :func:`identify` calls itself: one recipe for every entry point.
 
 A plant that runs experiments (simulated or live):
 
@@ -102,10 +103,7 @@ def identify(cfg, *, plant=None, records=None, out_dir=None, echo=print, stage_r
             records = load_records(cfg)
         ident = _from_records(cfg, [r for r in records if r.y is not None], out, echo, stage_results)
     else:
-        if plant is None:
-            from hwid.plant import make_plant
-            plant = make_plant(cfg, journal_dir=None if out is None else out / RIG_JOURNAL)
-        ident = _from_plant(cfg, plant, out, echo)
+        ident = _from_plant(cfg, _new_plant(cfg, out) if plant is None else plant, out, echo)
     return assessed(ident, echo)
 
 
@@ -127,57 +125,205 @@ def assessed(ident: Identification, echo=print) -> Identification:
     return replace(ident, adequacy=result)
 
 
-# --------------------------------------------------------------------------- a plant that runs experiments
+# --------------------------------------------------------------------------- the two stages, as the path runs them
 
-def _from_plant(cfg, plant, out: Path | None, echo) -> Identification:
-    """Steps 1-3 of the module docstring on ``plant``."""
-    from hwid.identify.deadzone_ahead import ThroughDeadZone, find_deadzone
+@dataclass(frozen=True)
+class StageOne:
+    """Stage 1 as the path reads it (:func:`stage1`).
+
+    ``result``: a simulated or live plant's :class:`~hwid.identify.result.NonlinearResult` (behind
+    the input dead zone its levels fit behind, where there is one: ``fit["deadzone_ahead"]``), or a
+    recorded plant's :class:`~hwid.identify.result.HistoryResult`. ``records``: what it was read
+    from (the staircases, or the records with an output). ``notes``: what the path said of it
+    beyond the result's own warnings. ``paths``: the file written (``nonlinear`` or ``history``)."""
+
+    result: object
+    records: tuple = ()
+    notes: tuple[str, ...] = ()
+    paths: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class StageTwo:
+    """Stage 2 as the path reads it (:func:`stage2`).
+
+    ``linear``: the :class:`~hwid.identify.result.LinearResult`, or None where stage 2 is not run
+    (``why``: an unsafe pre-compensator, no periodic stretch in the records). ``records``: the sine
+    records as the plant received them, or a recorded plant's periodic pieces. ``cfg``: the config
+    whose sines were used (smaller than the given one's where the outputs rested on a sensor rail:
+    :func:`sines_off_the_rails`). ``paths``: ``linear`` where written."""
+
+    linear: object
+    records: tuple = ()
+    cfg: object = None
+    why: str = ""
+    paths: dict = field(default_factory=dict)
+
+
+def stage1(cfg, *, plant=None, records=None, data=None, out_dir=None, echo=print) -> StageOne:
+    """Stage 1 of the path, the one recipe ``hwid run``, ``hwid identify-nonlinear`` and the
+    diagnosis share: for a plant that runs experiments, the staircases (Section 4,
+    :func:`hwid.identify.nonlinear.identify_nonlinear`) and, where their levels fit only behind an
+    input dead zone, stage 1 behind it (:mod:`hwid.identify.deadzone_ahead`), ``nonlinear.h5``; for
+    a recorded plant, the levels of every record with an output
+    (:func:`hwid.identify.history.identify_recorded`: disturbed holds left out, what the levels
+    cannot determine said so), ``history.h5``. Written where ``out_dir`` is given, and said.
+
+    Parameters
+    ----------
+    plant : optional
+        The plant to run the staircases on (default: a new one of ``cfg``, journalled in
+        ``out_dir/rig_journal``).
+    records : sequence of :class:`hwid.plant.Record`, optional
+        A recorded plant's records (default: :func:`hwid.recorded.load_records`).
+    data : path or mapping, optional
+        The staircases as recorded before (a ``simulation.h5``) instead of running them.
+
+    Raises
+    ------
+    HwidError
+        Where stage 1 cannot be read from the data (no staircase, too few levels): one line.
+    """
+    out = None if out_dir is None else Path(out_dir)
+    if cfg.plant.kind == "recorded" or records is not None:
+        return _stage1_levels(cfg, records, out, echo)
+    return _stage1_staircases(cfg, plant, data, out, echo)
+
+
+def stage2(cfg, nonlinear, *, plant=None, records=None, out_dir=None, echo=print) -> StageTwo:
+    """Stage 2 of the path after :func:`stage1`'s ``nonlinear``: for a plant that runs experiments,
+    the sines through the pre-compensator (Section 5; behind stage 1's input dead zone, through its
+    inverse too), run again smaller while the outputs rest on a rail (:func:`sines_off_the_rails`),
+    not run where the pre-compensator is unsafe
+    (:func:`hwid.identify.sine_runs.unsafe_precompensator`); for a recorded plant, the records'
+    steady periodic stretches (:func:`hwid.identify.periodic.identify_periodic`). ``linear.h5``
+    where ``out_dir`` is given. Arguments as :func:`stage1`'s."""
+    out = None if out_dir is None else Path(out_dir)
+    if cfg.plant.kind == "recorded" or records is not None:
+        return _stage2_periodic(cfg, nonlinear, records, out, echo)
+    return _stage2_sines(cfg, nonlinear, plant, out, echo)
+
+
+def _new_plant(cfg, out: Path | None):
+    from hwid.plant import make_plant
+    return make_plant(cfg, journal_dir=None if out is None else out / RIG_JOURNAL)
+
+
+def _stage1_staircases(cfg, plant, data, out: Path | None, echo) -> StageOne:
+    from hwid.identify.deadzone_ahead import find_deadzone
     from hwid.identify.nonlinear import identify_nonlinear
-    from hwid.identify.sine_runs import run_sines, unsafe_precompensator
-    from hwid.results import write_nonlinear
     t0 = time.perf_counter()
-    nonlinear, nl_records = identify_nonlinear(cfg, plant=plant)
-    ahead = find_deadzone(cfg, nonlinear, nl_records)
-    notes: list = []
-    drive = plant        # what stage 2's sines go through: behind a dead zone, its inverse first
+    if data is None and plant is None:
+        plant = _new_plant(cfg, out)
+    nonlinear, records = identify_nonlinear(cfg, plant=plant, data=data)
+    ahead = find_deadzone(cfg, nonlinear, records)
+    notes = []
     if ahead is not None:
         echo(ahead.note())
         notes.append(ahead.note())
         nonlinear = _behind(ahead)
-        drive = ThroughDeadZone(plant, ahead.delta)
     paths = {}
     if out is not None:
-        paths["nonlinear"] = write_nonlinear(out / NONLINEAR, cfg, nonlinear, nl_records)
+        from hwid.results import write_nonlinear
+        paths["nonlinear"] = write_nonlinear(out / NONLINEAR, cfg, nonlinear, records)
     echo(f"stage 1: {nonlinear.type}, d+ = {nonlinear.d_plus:.4f}, S^d = {nonlinear.slope_down:.4f}, "
          f"d- = {nonlinear.d_minus:.4f}, degree {nonlinear.degree} ({time.perf_counter() - t0:.1f} s)")
-    base = dict(nonlinear=nonlinear, nonlinear_records=tuple(nl_records), paths=paths)
+    return StageOne(nonlinear, tuple(records), tuple(notes), paths)
+
+
+def _stage1_levels(cfg, records, out: Path | None, echo) -> StageOne:
+    from hwid.identify.history import identify_recorded
+    if records is None:
+        from hwid.recorded import load_records
+        records = load_records(cfg)
+    records = [r for r in records if r.y is not None]
+    hist = identify_recorded(cfg, records)
+    paths = {}
+    if out is not None:
+        from hwid.results import write_history
+        paths["history"] = write_history(out / HISTORY, cfg, hist)
+    band = hist.ci.get("dead_band")      # None where the levels cannot determine it
+    echo(f"stage 1 from the levels: {hist.type}, d+ = {hist.d_plus:.4g}, d- = {hist.d_minus:.4g}, dead band "
+         + (f"{hist.dead_band:.4g} [{band[0]:.4g}, {band[1]:.4g}]" if band is not None else
+            f"undetermined (fitted {hist.dead_band:.4g}, not a measurement)")
+         + f", S^d = {hist.slope_down:.4g}{' (MISFIT)' if hist.misfit else ''}")
+    for w in hist.warnings:
+        echo(f"warning: {w}")
+    return StageOne(hist, tuple(records), (), paths)
+
+
+def _stage2_sines(cfg, nonlinear, plant, out: Path | None, echo) -> StageTwo:
+    from hwid.identify.deadzone_ahead import ThroughDeadZone
+    from hwid.identify.sine_runs import unsafe_precompensator
+    unsafe = unsafe_precompensator(cfg, nonlinear)
+    if unsafe:
+        return StageTwo(None, (), cfg, unsafe)
+    plant = _new_plant(cfg, out) if plant is None else plant
+    delta = deadzone_behind(nonlinear)
+    drive = ThroughDeadZone(plant, delta) if delta > 0 else plant   # F sees the pre-compensated sine
+    linear, records = _stage2(cfg, nonlinear, drive, echo)
+    cfg, linear, records = sines_off_the_rails(cfg, nonlinear, linear, records, drive, echo)
+    if drive is not plant:     # the records as the plant received them, for the diagnosis and the files
+        records = [drive.sent.get(r.name, r) for r in records]
+    paths = {}
+    if out is not None:
+        from hwid.results import write_linear
+        paths["linear"] = write_linear(out / LINEAR, cfg, linear, records)
+    echo(f"stage 2: G(jw) at {len(linear.frequencies)} frequencies; G = "
+         f"{_coefficients(linear.parametric.get('num', []))}/{_coefficients(linear.parametric.get('den', []))}")
+    for w in linear.warnings:
+        echo(f"warning: {w}")
+    return StageTwo(linear, tuple(records), cfg, "", paths)
+
+
+def _stage2_periodic(cfg, hist, records, out: Path | None, echo) -> StageTwo:
+    from hwid.identify.linear import ExtrapolationWarning
+    from hwid.identify.periodic import identify_periodic, periodic_pieces
+    if records is None:
+        from hwid.recorded import load_records
+        records = load_records(cfg)
+    records = [r for r in records if r.y is not None]
+    if not periodic_pieces(records)[0]:
+        return StageTwo(None, (), cfg, "the records hold no steady periodic stretch")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExtrapolationWarning)     # said below from the result
+        lin, pieces = identify_periodic(cfg, records, hist)
+    paths = {}
+    if out is not None:
+        from hwid.results import write_linear
+        paths["linear"] = write_linear(out / LINEAR, cfg, lin, pieces)
+    echo(f"stage 2 from {len(lin.frequencies)} periodic stretch(es): G(jw) at "
+         f"{', '.join(f'{w:.4g}' for w in lin.frequencies)} rad/s")
+    for w in lin.warnings:
+        echo(f"warning: {w}")
+    return StageTwo(lin, tuple(pieces), cfg, "", paths)
+
+
+# --------------------------------------------------------------------------- a plant that runs experiments
+
+def _from_plant(cfg, plant, out: Path | None, echo) -> Identification:
+    """Steps 1-3 of the module docstring on ``plant``."""
+    from hwid.identify.sine_runs import run_sines
+    one = stage1(cfg, plant=plant, out_dir=out, echo=echo)
+    nonlinear, nl_records, notes = one.result, list(one.records), list(one.notes)
+    base = dict(nonlinear=nonlinear, nonlinear_records=one.records, paths=dict(one.paths))
     levels = list(cfg.protocols.staircase.levels_up) + list(cfg.protocols.staircase.levels_down)
     u_range = (float(min(levels)), float(max(levels)))
     if cfg.protocols.sine is None:
         if not cfg.identification.whole.enabled:
             return Identification(None, "stage 1 only", "the config has no sines: stage 2 is not run",
                                   records=tuple(nl_records), notes=tuple(notes), u_range=u_range, **base)
-        return _whole_from_stages(cfg, None, list(nl_records), out, echo, notes, u_range, base)
-    unsafe = unsafe_precompensator(cfg, nonlinear)
-    if unsafe:
+        return _whole_from_stages(cfg, None, nl_records, out, echo, notes, u_range, base)
+    two = stage2(cfg, nonlinear, plant=plant, out_dir=out, echo=echo)
+    if two.linear is None:
         echo("stage 1 did not identify F: stage 2 is not run, and the sines drive the plant without a "
              "pre-compensator")
         _, lin_records = run_sines(cfg, None, plant=plant)
-        return _whole_instead(cfg, list(nl_records) + list(lin_records), out, unsafe, echo, notes,
+        return _whole_instead(cfg, nl_records + list(lin_records), out, two.why, echo, notes,
                               {**base, "linear_records": tuple(lin_records)})
-    linear, lin_records = _stage2(cfg, nonlinear, drive, echo)
-    cfg, linear, lin_records = sines_off_the_rails(cfg, nonlinear, linear, lin_records, drive, echo)
-    if ahead is not None:      # the records as the plant received them, for the diagnosis and the files
-        lin_records = [drive.sent.get(r.name, r) for r in lin_records]
-    if out is not None:
-        from hwid.results import write_linear
-        paths["linear"] = write_linear(out / LINEAR, cfg, linear, lin_records)
-    echo(f"stage 2: G(jw) at {len(linear.frequencies)} frequencies; G = "
-         f"{_coefficients(linear.parametric.get('num', []))}/{_coefficients(linear.parametric.get('den', []))}")
-    for w in linear.warnings:
-        echo(f"warning: {w}")
-    base = {**base, "linear": linear, "linear_records": tuple(lin_records)}
-    records = [r for r in list(nl_records) + list(lin_records) if r.y is not None]
+    cfg, linear = two.cfg, two.linear
+    base = {**base, "linear": linear, "linear_records": two.records, "paths": {**base["paths"], **two.paths}}
+    records = [r for r in nl_records + list(two.records) if r.y is not None]
     why = g_undetermined(linear)
     if why:
         return _whole_instead(cfg, records, out, why, echo, notes, base)
@@ -206,10 +352,17 @@ def stages_model(nonlinear, linear, notes: list | None = None) -> HWModel:
     dead zone stage 1 was identified behind (:func:`_behind`) as its actuator."""
     from hwid.identify.result import model_from_stages
     model = model_from_stages(nonlinear, linear, notes)
-    found = (nonlinear.fit or {}).get("deadzone_ahead") or {}
-    if found.get("behind") and float(found.get("delta", 0.0)) > 0:
-        model = replace(model, actuator=Actuator(deadzone=float(found["delta"])))
+    delta = deadzone_behind(nonlinear)
+    if delta > 0:
+        model = replace(model, actuator=Actuator(deadzone=delta))
     return model
+
+
+def deadzone_behind(nonlinear) -> float:
+    """The width of the input dead zone stage 1's ``nonlinear`` was identified behind (:func:`_behind`;
+    kept in ``fit["deadzone_ahead"]``, which ``nonlinear.h5`` keeps), or 0."""
+    found = (getattr(nonlinear, "fit", None) or {}).get("deadzone_ahead") or {}
+    return float(found.get("delta", 0.0)) if found.get("behind") else 0.0
 
 
 def _stage2(cfg, nonlinear, drive, echo):
@@ -322,7 +475,7 @@ def _coefficients(c) -> str:
 
 # --------------------------------------------------------------------------- a recorded plant
 
-def _input_moves(cfg, records, what: str = "the records' input") -> None:
+def input_moves(cfg, records, what: str = "the records' input") -> None:
     """:class:`hwid.HwidError` (one line) where ``records``' input (``what``: which records, for the
     message) does not move enough to identify anything from: fewer than three distinct values (a
     play, G and h cannot be told apart from one or two levels)."""
@@ -353,7 +506,7 @@ def _from_records(cfg, records, out: Path | None, echo, stage_results: bool) -> 
     base: dict = {"paths": {}}
     if stage_results:
         base.update(_recorded_stages(cfg, records, out, echo))
-    _input_moves(cfg, fit, "the fit part's input" if held else "the records' input")
+    input_moves(cfg, fit, "the fit part's input" if held else "the records' input")
     t0 = time.perf_counter()
     fitter, how_borders = _whole_on_records(cfg, fit, echo)
     res, paths = _said(cfg, fitter, out, echo, t0)
@@ -424,39 +577,20 @@ def _whole_on_records(cfg, pieces, echo):
 
 def _recorded_stages(cfg, records, out: Path | None, echo) -> dict:
     """Stage 1 from all the records' levels (``history.h5``) and stage 2 from their periodic
-    stretches (``linear.h5``), where they hold them: reported beside the model."""
-    from hwid.identify.history import identify_recorded
+    stretches (``linear.h5``), where they hold them (:func:`stage1`, :func:`stage2`): reported
+    beside the model."""
     found: dict = {"paths": {}}
     try:
-        hist = identify_recorded(cfg, records)
+        one = stage1(cfg, records=records, out_dir=out, echo=echo)
     except HwidError as err:
         echo(f"stage 1 from the levels: skipped ({err})")
         return found
-    found["history"] = hist
-    if out is not None:
-        from hwid.results import write_history
-        found["paths"]["history"] = write_history(out / HISTORY, cfg, hist)
-    band = hist.ci.get("dead_band")      # None where the levels cannot determine it
-    echo(f"stage 1 from the levels: {hist.type}, d+ = {hist.d_plus:.4g}, d- = {hist.d_minus:.4g}, dead band "
-         + (f"{hist.dead_band:.4g} [{band[0]:.4g}, {band[1]:.4g}]" if band is not None else
-            f"undetermined (fitted {hist.dead_band:.4g}, not a measurement)")
-         + f", S^d = {hist.slope_down:.4g}{' (MISFIT)' if hist.misfit else ''}")
-    for w in hist.warnings:
-        echo(f"warning: {w}")
-    from hwid.identify.periodic import identify_periodic, periodic_pieces
-    if not periodic_pieces(records)[0]:
-        echo("stage 2 from periodic stretches: skipped (the records hold no steady periodic stretch)")
+    found["history"] = one.result
+    found["paths"].update(one.paths)
+    two = stage2(cfg, one.result, records=records, out_dir=out, echo=echo)
+    if two.linear is None:
+        echo(f"stage 2 from periodic stretches: skipped ({two.why})")
         return found
-    from hwid.identify.linear import ExtrapolationWarning
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ExtrapolationWarning)     # said below from the result
-        lin, pieces = identify_periodic(cfg, records, hist)
-    found["linear"] = lin
-    if out is not None:
-        from hwid.results import write_linear
-        found["paths"]["linear"] = write_linear(out / LINEAR, cfg, lin, pieces)
-    echo(f"stage 2 from {len(lin.frequencies)} periodic stretch(es): G(jw) at "
-         f"{', '.join(f'{w:.4g}' for w in lin.frequencies)} rad/s")
-    for w in lin.warnings:
-        echo(f"warning: {w}")
+    found["linear"] = two.linear
+    found["paths"].update(two.paths)
     return found
