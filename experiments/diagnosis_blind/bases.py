@@ -101,7 +101,7 @@ def _levels_inside_borders(F: dict, lo: float, hi: float) -> tuple[float, float]
     return round(lo, 3), round(hi, 3)
 
 
-def _finish(b: dict, rng: np.random.Generator) -> dict:
+def _finish(b: dict) -> dict:
     """Bandwidth, sampling-related protocol entries and the staircase range of a drawn base."""
     b["omega_c"] = round(bandwidth(b["G"]["num"], b["G"]["den"]), 4)
     b["levels"] = _levels_inside_borders(b["F"], *b["levels"])
@@ -137,7 +137,7 @@ def draw(name: str, rng: np.random.Generator) -> dict:
              "split": {"num1": [1.0], "den1": [lag, 1.0], "num2": [_r(wn * wn)], "den2": [1.0, _r(2 * z * wn), _r(wn * wn)]},
              "levels": (-1.5, 1.5), "hold": 5 * tau, "amp": 1.0,
              "freqs": [0.4, 1.2, 0.7 * wn, 1.5 * wn], "periods": 4}
-        return _finish(b, rng)
+        return _finish(b)
     if name == "thermal":
         # a slow first-order plant (tau 6-10 s) behind a short lag; large play, unequal slopes
         T, T2, K = _r(U(6.0, 10.0), 3), _r(U(0.5, 1.5), 3), _r(U(0.8, 1.2))
@@ -149,7 +149,7 @@ def draw(name: str, rng: np.random.Generator) -> dict:
              "split": {"num1": [1.0], "den1": [T2, 1.0], "num2": [K], "den2": [T, 1.0]},
              "levels": (-2.2, 2.2), "hold": 5 * T, "amp": 1.2,
              "freqs": [0.2 / T, 0.5 / T, 1.0 / T, 2.5 / T], "periods": 3}
-        return _finish(b, rng)
+        return _finish(b)
     if name == "folded":
         # h non-invertible: its square term dominates over the lower part of the range, so h folds
         # back at a point a fifth to two fifths of the way up G's output range
@@ -162,7 +162,7 @@ def draw(name: str, rng: np.random.Generator) -> dict:
              "split": {"num1": [1.0], "den1": [T2, 1.0], "num2": [K], "den2": [T1, 1.0]},
              "levels": (-1.2, 1.2), "hold": 6 * T1, "amp": 1.0,
              "freqs": [0.3 / T1, 0.8 / T1, 1.6 / T1, 3.2 / T1], "periods": 4}
-        b = _finish(b, rng)
+        b = _finish(b)
         wlo, whi = w_range(b)
         fold = wlo + U(0.2, 0.4) * (whi - wlo)
         a2 = 1.0 / max(whi - wlo, 1e-9)          # output span of order one

@@ -281,6 +281,8 @@ def generate(out: Path, n_cases: int | None = None, seed: int = 2024, recorded: 
     on that base): a development set whose labels are known, never a judged seed."""
     if mix not in MIXES:
         raise ValueError(f"mix must be one of {MIXES}")
+    if effect == "second_nonlinearity" and base is not None and "split" not in bases.FIXED.get(base, {"split": 1}):
+        raise ValueError(f"the {base} base has no split G for a saturation between its lags")
     n_cases = n_cases if n_cases is not None else (40 if mix == "classic" else sum(WIDE_MIX.values()))
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -142,13 +142,15 @@ def _between_calls(p, st, u0, rng):
                              F["slope_up"] * (max(p.get("levels", (u0, u0))) - F["d_plus"])))
 
 
-def _plays(x, ep, st, how, rng):
+def _plays(x, ep, st, how, seed):
     """Output hysteresis: ``linear`` x plus a weighted sum of play operators of half-widths
     ``widths`` (one play, or a Prandtl-Ishlinskii sum). Each play's output stays within +-r of its
     input and moves only when pushed; its state is kept between calls unless the rig resets (then
     centred on the first input) or is parked / left anywhere (at a random border / inside)."""
     r = np.asarray(ep["widths"], float)
     wts = np.asarray(ep["weights"], float)
+    # its own random numbers: the rig's other draws (noise, parking) stay as without the effect
+    rng = st.setdefault("rng_plays", np.random.default_rng(np.random.SeedSequence([seed, 1])))
     pos = st.get("plays")
     if pos is None or how == "reset":
         pos = np.full(r.size, x[0])
@@ -226,40 +228,29 @@ def _delay(w, k, st, how):
     return out
 
 
-def run(p: dict, st: dict, u, dt: float) -> np.ndarray:
-    """One call of the rig: ``u`` (samples every ``dt`` s) in, measured ``y`` out."""
-    u = np.asarray(u, float).copy()
-    n = u.size
-    if "rng" not in st:
-        st["rng"] = np.random.default_rng(np.random.SeedSequence(p["seed"]))
-        st["t"] = 0.0
-        st["drift"] = 0.0
-    rng = st["rng"]
+def _actuator(u, p, st, dt):
+    """The actuator's effect on the command (a clip, a slew-rate limit, a dead zone)."""
     e, ep = p["effect"], p.get("effect_params", {})
-    how = p.get("between_calls", "carry")
-    keep = how == "keep"
-    t = st["t"] + np.arange(n) * dt
-    # ------------------------------------------------------------ actuator
     if e == "input_saturation":
         u = np.minimum(np.maximum(u, ep["lo"]), ep["hi"])
     elif e == "rate_limit":
         r = ep["rate"] * dt
         pos = st.get("act", u[0]) if p.get("actuator", "carry") == "carry" else u[0]
-        for i in range(n):
+        for i in range(u.size):
             pos += min(max(u[i] - pos, -r), r)
             u[i] = pos
         st["act"] = pos
     elif e == "input_deadzone":
         d = ep["delta"]
         u = np.where(np.abs(u) <= d, 0.0, u - d * np.sign(u))
-    w_start = _between_calls(p, st, float(u[0]), rng) if n else None
-    v = _gear(u, {**p, "bow": ep if e == "curved_borders" else None}, st)
-    # ------------------------------------------------------------ disturbances at G's input
-    if e == "gain_step":
-        v = v * np.where(t >= ep["at_s"], 1.0 + ep["step"], 1.0)
-    if e == "periodic_load":
-        v = v + ep["amp"] * np.sin(ep["omega"] * t + ep["phase"])
-    # ------------------------------------------------------------ dynamics
+    return u
+
+
+def _dynamics(v, p, st, dt, w_start, how):
+    """G (with a resonance, a saturation between its lags or friction on its output, as the effect
+    says) and any delay after it: the gear's output ``v`` in, G's output ``w`` out."""
+    e, ep = p["effect"], p.get("effect_params", {})
+    keep, n = how == "keep", v.size
     num, den = list(p["G"]["num"]), list(p["G"]["den"])
     if e == "resonance":
         wn, z = ep["omega_n"], ep["zeta"]
@@ -276,22 +267,47 @@ def run(p: dict, st: dict, u, dt: float) -> np.ndarray:
         w = _filter(num, den, v, dt, st, "G", w_start, keep)
     delay = p["G"].get("delay", 0.0) + (ep["delay"] if e == "time_delay" else 0.0)
     if delay > 0:
-        if how in ("keep", "reset"):
-            w = _delay(w, delay / dt, st, how) if how == "keep" else \
-                np.interp(np.arange(n) - delay / dt, np.arange(n), w, left=0.0)
+        if how == "keep":
+            w = _delay(w, delay / dt, st, how)
+        elif how == "reset":
+            w = np.interp(np.arange(n) - delay / dt, np.arange(n), w, left=0.0)
         else:
             k = delay / dt
             idx = np.arange(n) - k
             w = np.interp(idx, np.arange(n), w, left=w[0])
+    return w
+
+
+def run(p: dict, st: dict, u, dt: float) -> np.ndarray:
+    """One call of the rig: ``u`` (samples every ``dt`` s) in, measured ``y`` out."""
+    u = np.asarray(u, float).copy()
+    n = u.size
+    if "rng" not in st:
+        st["rng"] = np.random.default_rng(np.random.SeedSequence(p["seed"]))
+        st["t"] = 0.0
+        st["drift"] = 0.0
+    rng = st["rng"]
+    e, ep = p["effect"], p.get("effect_params", {})
+    how = p.get("between_calls", "carry")
+    t = st["t"] + np.arange(n) * dt
+    u = _actuator(u, p, st, dt)
+    w_start = _between_calls(p, st, float(u[0]), rng) if n else None
+    v = _gear(u, {**p, "bow": ep if e == "curved_borders" else None}, st)
+    # ------------------------------------------------------------ disturbances at G's input
+    if e == "gain_step":
+        v = v * np.where(t >= ep["at_s"], 1.0 + ep["step"], 1.0)
+    if e == "periodic_load":
+        v = v + ep["amp"] * np.sin(ep["omega"] * t + ep["phase"])
+    w = _dynamics(v, p, st, dt, w_start, how)
     if e == "output_hysteresis" and ep["at"] == "w":
-        w = _plays(w, ep, st, how, rng)
+        w = _plays(w, ep, st, how, p["seed"])
     x = np.polyval(p["h"][::-1], w)
     if e == "output_hysteresis" and ep["at"] == "y":
-        x = _plays(x, ep, st, how, rng)
+        x = _plays(x, ep, st, how, p["seed"])
     # ------------------------------------------------------------ sensor and disturbances
     if e == "sensor_lag":
         rest = float(np.polyval(p["h"][::-1], 0.0)) if how == "reset" else None
-        x = _filter([1.0], [ep["tau"], 1.0], x, dt, st, "lag", rest, keep, method="bilinear")
+        x = _filter([1.0], [ep["tau"], 1.0], x, dt, st, "lag", rest, how == "keep", method="bilinear")
     if e == "hysteretic_friction":
         y = np.empty_like(x)
         pos = x[0] if how == "reset" else st.get("shaft", x[0])
