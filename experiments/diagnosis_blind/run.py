@@ -11,10 +11,11 @@ Usage::
     python run.py /tmp/blind --way recorded-model     # the lab log as the plant, the rig's simulator as --model
     python run.py /tmp/blind --way recorded-identify  # the lab log only: hwid identifies from it first
 
-Prints a confusion matrix (truth rows, verdict columns; effects outside the catalogue are one row,
-``outside``), the accuracy (an outside effect counts as correct when called ``unexplained``), false
-alarms on plain rigs, gap after / noise floor for correct verdicts, and time, plant calls and
-rig-seconds per diagnosis. Writes ``RESULTS-<way>.json`` beside the cases.
+Prints a confusion matrix (truth rows, verdict columns; effects and disturbances outside the
+catalogue are one row, ``outside``, broken down by label below it), the accuracy (an outside effect
+counts as correct when called ``unexplained``), the share correct per base, false alarms on plain
+rigs, gap after / noise floor for correct verdicts, and time, plant calls and rig-seconds per
+diagnosis. Writes ``RESULTS-<way>.json`` beside the cases.
 
 The recorded ways (``recorded-model``, ``recorded-identify``) diagnose ``CASE/recorded.yaml`` (one
 logged lab run of the rig, no plant calls). Their verdicts are scored as above, and also with half
@@ -104,6 +105,14 @@ def score(results: list[dict], sealed: dict, half_credit: bool = False) -> dict:
             ratios.append(r["gap_after"] / r["noise_floor"])
         details.append({**r, "truth": truth, "base": sealed[r["case"]]["base"], "truth_params": sealed[r["case"]]["params"],
                         "correct": bool(ok), **({"credit": 1.0 if ok else (0.5 if half else 0.0)} if half_credit else {})})
+    by_base, outside_by_label = {}, {}
+    for d in details:
+        nb = by_base.setdefault(d["base"], {"n": 0, "correct": 0})
+        nb["n"], nb["correct"] = nb["n"] + 1, nb["correct"] + d["correct"]
+        label = sealed[d["case"]]["label"]
+        if label not in rows and d["truth"] != "none":
+            nl = outside_by_label.setdefault(label, {"n": 0, "unexplained": 0})
+            nl["n"], nl["unexplained"] = nl["n"] + 1, nl["unexplained"] + d["correct"]
     n_none = sum(M["none"].values())
     n_out = sum(M["outside"].values())
     ok_runs = [r for r in results if "error" not in r]
@@ -113,6 +122,7 @@ def score(results: list[dict], sealed: dict, half_credit: bool = False) -> dict:
             "accuracy": correct / max(len(results), 1), **extra,
             "false_alarms_on_none": n_none - M["none"]["none"], "n_none": n_none,
             "outside_unexplained": M["outside"]["unexplained"], "n_outside": n_out,
+            "by_base": by_base, "outside_by_label": outside_by_label,
             "gap_after_over_noise_correct": {"max": max(ratios, default=float("nan")),
                                              "median": float(np.median(ratios)) if ratios else float("nan"),
                                              "within_1.5": int(sum(x <= 1.5 for x in ratios)), "n": len(ratios)},
@@ -139,7 +149,9 @@ def print_table(sc: dict, way: str) -> None:
             continue
         print(short[r].ljust(18) + "".join((str(sc["matrix"][r][c]) if sc["matrix"][r][c] else ".").rjust(7) for c in sc["cols"]))
     print(f"false alarms on plain rigs: {sc['false_alarms_on_none']}/{sc['n_none']}")
-    print(f"outside effects called unexplained: {sc['outside_unexplained']}/{sc['n_outside']}")
+    print(f"outside effects called unexplained: {sc['outside_unexplained']}/{sc['n_outside']}"
+          + "".join(f"; {k} {v['unexplained']}/{v['n']}" for k, v in sorted(sc["outside_by_label"].items())))
+    print("correct by base: " + ", ".join(f"{k} {v['correct']}/{v['n']}" for k, v in sorted(sc["by_base"].items())))
     g = sc["gap_after_over_noise_correct"]
     print(f"correct verdicts with gap after <= 1.5 x noise floor: {g['within_1.5']}/{g['n']} "
           f"(median {g['median']:.2f}, max {g['max']:.2f})")
