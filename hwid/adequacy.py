@@ -535,9 +535,9 @@ def judge(scored, floor: NoiseFloor, held_out=(), step: int = 1, alpha: float = 
         _, rms, bound, what = max(bad, key=lambda v: v[1] / v[2])
         own = floor.sigma * np.sqrt(max((rms / floor.sigma) ** 2 - 1.0, 0.0))
         return result("misfit", f"RMS {rms:.4g} on {what} = {rms / floor.sigma:.3g} x the noise floor "
-                                f"{floor.sigma:.4g} ({floor.source}), above the {bound:.3g} a correct model reaches "
+                                f"{floor.sigma:.4g} ({floor.source}), above the {bound:.4g} a correct model reaches "
                                 f"(false-alarm rate {alpha:g}); the model's own error is about {own:.3g} RMS, "
                                 f"{own / floor.sigma:.2g} x the noise", bound)
     bound = max(v[2] for v in verdicts)
     return result("adequate", f"RMS {worst[0]:.4g} on {worst[2]} = {ratio:.3g} x the noise floor {floor.sigma:.4g} "
-                              f"({floor.source}), within the {bound:.3g} a correct model reaches", bound)
+                              f"({floor.source}), within the {bound:.4g} a correct model reaches", bound)
