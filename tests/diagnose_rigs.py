@@ -327,10 +327,7 @@ class _PaperRig(_Rig):
         self.state = None
 
     def paper(self, u, dt):
-        return self.after_gear(self.gear_out(u, 0.5), dt)
-
-    def after_gear(self, v, dt):
-        """G and h of the paper's plant driven by the gear's position ``v``."""
+        v = self.gear_out(u, 0.5)
         A, B, C, D, _ = signal.cont2discrete(signal.tf2ss([0.2], [1.0, 0.7, 0.1]), dt, method="zoh")
         x = np.linalg.solve(np.eye(2) - A, B[:, 0] * v[0]) if self.state is None else self.state
         w = np.empty_like(v)
@@ -484,7 +481,7 @@ def output_hysteresis(u, dt):
 # ------------------------------------------------------------------ a plant that changes once (issue 47)
 
 #: the gain step of :func:`gain_step`: G's gain times ``factor`` from call ``after_calls`` on (0-based)
-GAIN_STEP = {"after_calls": 3, "factor": 1.6}
+GAIN_STEP = {"after_calls": 2, "factor": 1.6}
 
 
 def gain_step(u, dt):
@@ -505,26 +502,32 @@ def gain_step(u, dt):
 
 # ------------------------------------------------------------------ cubic-bent borders (issue 47)
 
-#: cubic-bent borders, by driver: ``(kappa_up, kappa_down, own)`` of :func:`_cubic_gear`
-CUBIC = {"cubic_in": (-0.15, -0.15, True), "cubic_in_weak": (-0.07, -0.07, True),
-         "cubic_out": (0.15, 0.15, True), "cubic_out_weak": (0.07, 0.07, True),
-         "cubic_closing": (0.25, -0.25, False), "cubic_opening": (-0.25, 0.25, False),
-         "cubic_in_strong": (-0.19, -0.19, True), "cubic_closing_strong": (0.29, -0.29, False)}
+#: borders bent either way, by driver: ``(kappa_up, kappa_down, kind)`` of :func:`_cubic_gear`
+CUBIC = {"cubic_in": (-0.15, -0.15, "own"), "cubic_in_weak": (-0.07, -0.07, "own"),
+         "cubic_in_strong": (-0.19, -0.19, "own"), "cubic_out": (0.15, 0.15, "own"),
+         "cubic_out_weak": (0.07, 0.07, "own"), "cubic_closing": (0.25, -0.25, "added"),
+         "cubic_closing_strong": (0.29, -0.29, "added"), "cubic_opening": (-0.25, 0.25, "added"),
+         "bow_in": (0.25, -0.25, "bow"), "bow_out": (-0.25, 0.25, "bow")}
 
 
 def _cubic_gear(r: _Rig, u, play: float, bend: tuple):
-    """The gear's position between two borders bent as cubics, carried over in ``r``. ``bend =
-    (kappa_up, kappa_down, own)``: with ``own``, each border is a cubic of its own argument,
-    ``(u - play) + kappa_up (u - play)^3`` and ``(u + play) + kappa_down (u + play)^3`` (with one
-    ``kappa < 0`` both flatten towards the ends of the range and the play narrows there by
-    ``|kappa| (6 play u^2 + 2 play^3)``: bent inward; ``kappa > 0``, steepening and widening,
-    outward); otherwise the bends are ``kappa u^3`` added to the straight borders (opposite signs
-    close the play at one end of the range and open it at the other)."""
-    ku, kd, own = bend
-    if own:
+    """The gear's position between two bent borders, carried over in ``r``. ``bend = (kappa_up,
+    kappa_down, kind)``:
+
+    * ``own``: each border a cubic of its own argument, ``(u - play) + kappa_up (u - play)^3`` and
+      ``(u + play) + kappa_down (u + play)^3``; with ``kappa < 0`` both flatten towards the ends of
+      the range and the play narrows there by ``|kappa| (6 play u^2 + 2 play^3)`` (bent inward),
+      with ``kappa > 0`` they steepen and the play widens (outward);
+    * ``added``: ``kappa u^3`` added to each straight border (opposite signs close the play at one
+      end of the range and open it at the other);
+    * ``bow``: ``kappa u^2`` added to each (opposite signs: the play narrows, or widens, towards
+      both ends)."""
+    ku, kd, kind = bend
+    if kind == "own":
         lo, hi = (u - play) + ku * (u - play) ** 3, (u + play) + kd * (u + play) ** 3
     else:
-        lo, hi = (u - play) + ku * u ** 3, (u + play) + kd * u ** 3
+        p = 3 if kind == "added" else 2
+        lo, hi = (u - play) + ku * u ** p, (u + play) + kd * u ** p
     v = np.empty_like(u)
     g = r.gear
     for i in range(u.size):
@@ -535,10 +538,11 @@ def _cubic_gear(r: _Rig, u, play: float, bend: tuple):
 
 
 def _cubic_rig(name: str, u, dt):
-    """The base plant whose borders are bent as cubics (:data:`CUBIC`, :func:`_cubic_gear`). On the
-    working range [-1, 1] the borders stay monotone (``kappa > -1 / (3 * 1.3^2) = -0.197`` for
-    bends of their own arguments, ``> -1/3`` otherwise) and never cross (``|kappa| < 0.3`` for the
-    opposed bends, which close the play to a tenth of its width at one end)."""
+    """The base plant whose borders are bent (:data:`CUBIC`, :func:`_cubic_gear`). On the working
+    range [-1, 1] the borders stay monotone (``kappa > -1 / (3 * 1.3^2) = -0.197`` for cubics of
+    their own arguments, ``|kappa| < 1/3`` for added cubics, ``< 1/2`` for bows) and never cross
+    (``|kappa| < 0.3`` for opposed added cubics, 0.29 closing the play from 0.6 to 0.02 at the end
+    where they meet; a bow of 0.25 narrows it to 0.1 at both ends)."""
     r = _rig(name)
     u = np.asarray(u, float)
     v = _cubic_gear(r, u, 0.3, CUBIC[name])
@@ -572,33 +576,6 @@ def cubic_out_weak(u, dt):
     return _cubic_rig("cubic_out_weak", u, dt)
 
 
-#: the paper's plant with cubic borders (play 0.5, levels -1.4 to 1.2): monotone on that range
-#: while ``kappa > -1 / (3 * 1.9^2) = -0.092``
-CUBIC.update({"paper_cubic_in": (-0.08, -0.08, True), "paper_cubic_in_weak": (-0.04, -0.04, True),
-              "paper_cubic_out": (0.08, 0.08, True)})
-
-
-def _paper_cubic(name: str, u, dt):
-    """The paper's plant (:class:`_PaperRig`) with its borders bent as in :func:`_cubic_rig`."""
-    if name not in _RIGS:
-        _RIGS[name] = _PaperRig(zlib.crc32(name.encode()))
-    r = _RIGS[name]
-    u = np.asarray(u, float)
-    return r.after_gear(_cubic_gear(r, u, 0.5, CUBIC[name]), dt) + r.noise(u.size)
-
-
-def paper_cubic_in(u, dt):
-    return _paper_cubic("paper_cubic_in", u, dt)
-
-
-def paper_cubic_in_weak(u, dt):
-    return _paper_cubic("paper_cubic_in_weak", u, dt)
-
-
-def paper_cubic_out(u, dt):
-    return _paper_cubic("paper_cubic_out", u, dt)
-
-
 def cubic_in_strong(u, dt):
     return _cubic_rig("cubic_in_strong", u, dt)
 
@@ -609,7 +586,7 @@ def cubic_closing_strong(u, dt):
 
 #: the Backlash-Inverse plant with cubic branches (levels -1.5 to 1.5): monotone there while
 #: ``kappa > -1 / (3 * 1.7^2) = -0.115``
-CUBIC.update({"inverse_cubic_in": (-0.1, -0.1, True), "inverse_cubic_out": (0.1, 0.1, True)})
+CUBIC.update({"inverse_cubic_in": (-0.1, -0.1, "own"), "inverse_cubic_out": (0.1, 0.1, "own")})
 
 
 def _inverse_cubic(name: str, u, dt):
@@ -632,3 +609,11 @@ def inverse_cubic_in(u, dt):
 
 def inverse_cubic_out(u, dt):
     return _inverse_cubic("inverse_cubic_out", u, dt)
+
+
+def bow_in(u, dt):
+    return _cubic_rig("bow_in", u, dt)
+
+
+def bow_out(u, dt):
+    return _cubic_rig("bow_out", u, dt)

@@ -148,7 +148,7 @@ class Gaps:
     def relevant(self) -> Relevance:
         """Whether an effect removes a practically relevant part of the gap, measured from the
         baseline every effect was fitted against (:data:`hwid.diagnose.verdict.RELEVANT`)."""
-        return Relevance(self.gap_before, self.gap_ref, self.floor.sigma)
+        return Relevance(self.gap_ref, self.floor.sigma)
 
 
 @dataclass
