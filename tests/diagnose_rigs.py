@@ -252,16 +252,18 @@ class _InverseRig(_Rig):
         self.u_prev = None
         self.actuator = None
 
-    def inverse(self, u, dt, bow=None):
-        """``bow``: per sample, how far each branch is moved away from the other."""
+    def inverse(self, u, dt, bow=None, shifts=None):
+        """``bow``: per sample, how far each branch is moved away from the other; ``shifts``: per
+        sample, how far the rising and the falling branch are moved up (a pair of arrays)."""
         v = np.empty_like(u)
         bow = np.zeros_like(u) if bow is None else bow
+        up_shift, dn_shift = (np.zeros_like(u), np.zeros_like(u)) if shifts is None else shifts
         g, prev = self.gear, (u[0] if self.u_prev is None else self.u_prev)
         for i, ui in enumerate(u):
             if ui > prev:
-                g = ui / 1.0 + 0.2 + bow[i]
+                g = ui / 1.0 + 0.2 + bow[i] + up_shift[i]
             elif ui < prev:
-                g = ui / 1.3 - 0.3 - bow[i]
+                g = ui / 1.3 - 0.3 - bow[i] + dn_shift[i]
             prev = ui
             v[i] = g
         self.gear, self.u_prev = g, prev
@@ -474,3 +476,144 @@ def output_hysteresis(u, dt):
         out[k] = (1 - t["weight"]) * wk + t["weight"] * sum(plays) / 4
     r.plays = plays
     return out - 0.1 * out ** 3 + r.noise(u.size)
+
+
+# ------------------------------------------------------------------ a plant that changes once (issue 47)
+
+#: the gain step of :func:`gain_step`: G's gain times ``factor`` from call ``after_calls`` on (0-based)
+GAIN_STEP = {"after_calls": 2, "factor": 1.6}
+
+
+def gain_step(u, dt):
+    """The plain base plant whose G's gain steps once, by :data:`GAIN_STEP` ``factor``, at the
+    start of call ``after_calls``: a plant that changed mid-session (a load added, a supply
+    switched), not an effect of the catalogue. The gear and the call count carry over."""
+    r = _rig("gain_step")
+    u = np.asarray(u, float)
+    calls = getattr(r, "calls", 0)
+    r.calls = calls + 1
+    v = r.gear_out(u, 0.3)
+    gain = GAIN_STEP["factor"] if calls >= GAIN_STEP["after_calls"] else 1.0
+    b, a = _zoh(dt, num=(2.0 * gain,))
+    zi = signal.lfiltic(b, a, y=[gain * v[0]] * (len(a) - 1), x=[v[0]] * (len(b) - 1))
+    w = signal.lfilter(b, a, v, zi=zi)[0]
+    return w - 0.1 * w ** 3 + r.noise(u.size)
+
+
+# ------------------------------------------------------------------ cubic-bent borders (issue 47)
+
+#: borders bent either way, by driver: ``(kappa_up, kappa_down, kind)`` of :func:`_cubic_gear`
+CUBIC = {"cubic_in": (-0.15, -0.15, "own"), "cubic_in_weak": (-0.07, -0.07, "own"),
+         "cubic_in_strong": (-0.19, -0.19, "own"), "cubic_out": (0.15, 0.15, "own"),
+         "cubic_out_weak": (0.07, 0.07, "own"), "cubic_closing": (0.25, -0.25, "added"),
+         "cubic_closing_strong": (0.29, -0.29, "added"), "cubic_opening": (-0.25, 0.25, "added"),
+         "bow_in": (0.25, -0.25, "bow"), "bow_out": (-0.25, 0.25, "bow")}
+
+
+def _cubic_gear(r: _Rig, u, play: float, bend: tuple):
+    """The gear's position between two bent borders, carried over in ``r``. ``bend = (kappa_up,
+    kappa_down, kind)``:
+
+    * ``own``: each border a cubic of its own argument, ``(u - play) + kappa_up (u - play)^3`` and
+      ``(u + play) + kappa_down (u + play)^3``; with ``kappa < 0`` both flatten towards the ends of
+      the range and the play narrows there by ``|kappa| (6 play u^2 + 2 play^3)`` (bent inward),
+      with ``kappa > 0`` they steepen and the play widens (outward);
+    * ``added``: ``kappa u^3`` added to each straight border (opposite signs close the play at one
+      end of the range and open it at the other);
+    * ``bow``: ``kappa u^2`` added to each (opposite signs: the play narrows, or widens, towards
+      both ends)."""
+    ku, kd, kind = bend
+    if kind == "own":
+        lo, hi = (u - play) + ku * (u - play) ** 3, (u + play) + kd * (u + play) ** 3
+    else:
+        p = 3 if kind == "added" else 2
+        lo, hi = (u - play) + ku * u ** p, (u + play) + kd * u ** p
+    v = np.empty_like(u)
+    g = r.gear
+    for i in range(u.size):
+        g = min(max(g, lo[i]), hi[i])
+        v[i] = g
+    r.gear = g
+    return v
+
+
+def _cubic_rig(name: str, u, dt):
+    """The base plant whose borders are bent (:data:`CUBIC`, :func:`_cubic_gear`). On the working
+    range [-1, 1] the borders stay monotone (``kappa > -1 / (3 * 1.3^2) = -0.197`` for cubics of
+    their own arguments, ``|kappa| < 1/3`` for added cubics, ``< 1/2`` for bows) and never cross
+    (``|kappa| < 0.3`` for opposed added cubics, 0.29 closing the play from 0.6 to 0.02 at the end
+    where they meet; a bow of 0.25 narrows it to 0.1 at both ends)."""
+    r = _rig(name)
+    u = np.asarray(u, float)
+    v = _cubic_gear(r, u, 0.3, CUBIC[name])
+    b, a = _zoh(dt)
+    zi = signal.lfiltic(b, a, y=[v[0]] * (len(a) - 1), x=[v[0]] * (len(b) - 1))
+    w = signal.lfilter(b, a, v, zi=zi)[0]
+    return w - 0.1 * w ** 3 + r.noise(u.size)
+
+
+def cubic_closing(u, dt):
+    return _cubic_rig("cubic_closing", u, dt)
+
+
+def cubic_opening(u, dt):
+    return _cubic_rig("cubic_opening", u, dt)
+
+
+def cubic_in(u, dt):
+    return _cubic_rig("cubic_in", u, dt)
+
+
+def cubic_in_weak(u, dt):
+    return _cubic_rig("cubic_in_weak", u, dt)
+
+
+def cubic_out(u, dt):
+    return _cubic_rig("cubic_out", u, dt)
+
+
+def cubic_out_weak(u, dt):
+    return _cubic_rig("cubic_out_weak", u, dt)
+
+
+def cubic_in_strong(u, dt):
+    return _cubic_rig("cubic_in_strong", u, dt)
+
+
+def cubic_closing_strong(u, dt):
+    return _cubic_rig("cubic_closing_strong", u, dt)
+
+
+#: the Backlash-Inverse plant with cubic branches (levels -1.5 to 1.5): monotone there while
+#: ``kappa > -1 / (3 * 1.7^2) = -0.115``
+CUBIC.update({"inverse_cubic_in": (-0.1, -0.1, "own"), "inverse_cubic_out": (0.1, 0.1, "own")})
+
+
+def _inverse_cubic(name: str, u, dt):
+    """The Backlash-Inverse plant (:class:`_InverseRig`) whose branches are cubics of their own
+    arguments: ``a + kappa a^3`` with ``a = u + 0.2`` rising, ``b + kappa b^3`` with
+    ``b = u / 1.3 - 0.3`` falling (inward, ``kappa < 0``: the jump between them shrinks towards
+    the ends of the range; outward, it grows)."""
+    if name not in _RIGS:
+        _RIGS[name] = _InverseRig(zlib.crc32(name.encode()))
+    r = _RIGS[name]
+    u = np.asarray(u, float)
+    ku, kd, _ = CUBIC[name]
+    shifts = (ku * (u + 0.2) ** 3, kd * (u / 1.3 - 0.3) ** 3)
+    return r.inverse(u, dt, shifts=shifts) + r.NOISE * r.rng.standard_normal(u.size)
+
+
+def inverse_cubic_in(u, dt):
+    return _inverse_cubic("inverse_cubic_in", u, dt)
+
+
+def inverse_cubic_out(u, dt):
+    return _inverse_cubic("inverse_cubic_out", u, dt)
+
+
+def bow_in(u, dt):
+    return _cubic_rig("bow_in", u, dt)
+
+
+def bow_out(u, dt):
+    return _cubic_rig("bow_out", u, dt)

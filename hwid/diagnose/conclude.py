@@ -18,11 +18,11 @@ from hwid.diagnose.context import Context, Validation, sine_band
 from hwid.diagnose.effects import CATALOGUE, catalogue
 from hwid.diagnose.log_drift import (drift_from_residual, drift_leaves_little, drift_takes_the_excess,
                                      input_predicts_it, repeats_under_best)
-from hwid.diagnose.model_check import (adequacy_tail, adequacy_where, describe_misfit, fails_own_records,
-                                      model_adequacy, not_none_from_a_misfit)
+from hwid.diagnose.model_check import (adequacy_tail, adequacy_where, changed_or_inadequate, describe_misfit,
+                                      fails_own_records, model_adequacy, not_none_from_a_misfit)
 from hwid.diagnose.modelsim import ModelSim
-from hwid.diagnose.verdict import (Candidate, alternative_baseline, eligible, indistinguishable, named_from_rails,
-                                    refloor, simplest_in_group)
+from hwid.diagnose.verdict import (Candidate, Relevance, alternative_baseline, eligible, indistinguishable,
+                                    named_from_rails, refloor, simplest_in_group)
 from hwid.diagnose.verdict import verdict as decide_verdict
 from hwid.identify import rails
 from hwid.results import write_json
@@ -144,6 +144,12 @@ class Gaps:
     def leaves_noise(self, gap_after: float) -> bool:
         return not self.test_of(gap_after).significant
 
+    @property
+    def relevant(self) -> Relevance:
+        """Whether an effect removes a practically relevant part of the gap, measured from the
+        baseline every effect was fitted against (:data:`hwid.diagnose.verdict.RELEVANT`)."""
+        return Relevance(self.gap_ref, self.floor.sigma)
+
 
 @dataclass
 class Decision:
@@ -182,12 +188,18 @@ def conclude(ctx: Context) -> dict:
                                                           ctx.effects, ctx.echo)
     cands, drift_ok = drift_step(ctx, gaps, cands)
     by_effect = None
+    changed = changed_or_inadequate(ctx, gaps.gap_before, gaps.gap_ref, gaps.n_val, gaps.min_ratio, gaps.id_err,
+                                    GENERALISE_RATIO)
+    if changed:
+        ctx.echo(changed)
+        decision = Decision("unexplained", changed)
+        return write_result(ctx, gaps, cands, drift_ok, by_effect, decision, on_rails, t0)
     if not gaps.test.significant:
         # below the given model's 10 %, only an effect that earns a BIC score of GIVEN_SMALL_SCORE
         small = not ctx.identified and not gaps.test.ratio > gaps.min_ratio
         cands, by_effect = second_test(cands, gaps.gap_ref, ctx.floor, drift_ok, gaps.fitter.n_eff,
                                        refloor_first=ctx.identified, min_score=GIVEN_SMALL_SCORE if small else 0.0,
-                                       min_share=0.0 if ctx.identified else ID_PARTIAL[0])
+                                       min_share=0.0 if ctx.identified else ID_PARTIAL[0], relevant=gaps.relevant)
         if by_effect is not None and by_effect["significant"]:
             gaps.test = dataclasses.replace(gaps.test, significant=True)
     decision = decide(ctx, gaps, cands, drift_ok, without)
@@ -258,15 +270,15 @@ def decide(ctx: Context, gaps: Gaps, cands, drift_ok: bool, without) -> Decision
     max_left = None if identified else GIVEN_MAX_LEFT * sigma
     partial = (ID_PARTIAL[0], ID_PARTIAL[1] * sigma) if identified else None
     verdict = decide_verdict(cands, gaps.test.significant, drift_ok, leaves_noise=gaps.leaves_noise,
-                             max_left=max_left, partial=partial)
-    why = why_unexplained(verdict, cands, drift_ok, gaps.leaves_noise, max_left, sigma)
+                             max_left=max_left, partial=partial, relevant=gaps.relevant)
+    why = why_unexplained(verdict, cands, drift_ok, gaps.leaves_noise, max_left, sigma, gaps.relevant)
     if why:
         echo(why)
     if gaps.id_err is not None and not gaps.id_err.get("generalises", True) and verdict != "none":
         verdict = _unless_generalising(verdict, gaps.id_err, ctx.val, gaps.leaves_noise, echo)
     groups = indistinguishable(cands, ctx.val.y_val, ctx.val.m_val, sigma, ctx.floor.kappa, drift_ok,
                                leaves_noise=gaps.leaves_noise, max_left=max_left,
-                               partial=partial) if gaps.test.significant else []
+                               partial=partial, relevant=gaps.relevant) if gaps.test.significant else []
     simplest = simplest_in_group(verdict, groups, cands)
     if simplest is not verdict:
         echo(f"{verdict.effect} and {simplest.effect} fit the validation data alike: the one with fewer "
@@ -328,9 +340,19 @@ def write_result(ctx: Context, gaps: Gaps, cands, drift_ok: bool, by_effect, d: 
     alike = summary["verdict"].get("indistinguishable_from") or []
     ctx.echo(f"verdict: {verdict_name}{' (indistinguishable from ' + ', '.join(alike) + ')' if alike else ''} "
              f"(block {summary['verdict']['block']}, explained {explained:.2f}); "
-             f"gap {summary['gap_before']:.4g} -> {summary['gap_after']:.4g}, noise floor {ctx.floor.sigma:.4g}"
+             f"gap {summary['gap_before']:.4g}{_baseline_note(d.verdict, gaps)} -> {summary['gap_after']:.4g}, "
+             f"noise floor {ctx.floor.sigma:.4g}"
              + adequacy_tail(ctx))
     return summary
+
+
+def _baseline_note(verdict, gaps: Gaps) -> str:
+    """For a named effect measured against a baseline other than the model itself (an identified
+    model's refit), that baseline's gap: the effect is credited with the step from it, not with
+    what the refit removed by itself."""
+    if not isinstance(verdict, Candidate) or not gaps.gap_ref < gaps.gap_before:
+        return ""
+    return f" (the model refitted without an effect: {gaps.gap_ref:.4g}, what {verdict.effect} is measured from)"
 
 
 def _lag_by_level(verdict, val: Validation, fitter=None) -> dict | None:
@@ -410,13 +432,19 @@ def actuator_hints(origin: dict) -> dict:
     return hints
 
 
-def why_unexplained(verdict, cands, drift_ok: bool, leaves_noise, max_left, sigma: float) -> str:
+def why_unexplained(verdict, cands, drift_ok: bool, leaves_noise, max_left, sigma: float,
+                    relevant: Relevance | None = None) -> str:
     """Why the verdict is ``unexplained`` where the first candidate that could be named would have
-    been, but for what it leaves (``max_left``); ``""`` otherwise."""
-    if verdict != "unexplained" or max_left is None:
+    been, but for what it leaves (``max_left``) or for removing too little of the gap
+    (``relevant``, :class:`hwid.diagnose.verdict.Relevance`); ``""`` otherwise."""
+    if verdict != "unexplained":
         return ""
     top = next((c for c in cands if c.effect != "drift" or drift_ok), None)
     if top is None or not eligible(top, drift_ok, leaves_noise=leaves_noise):
+        return ""
+    if relevant is not None and not relevant(top):
+        return f"{relevant.describe(top)}: unexplained"
+    if max_left is None:
         return ""
     return (f"{top.effect} explains {top.explained_fraction:.2f} of the gap but leaves {top.gap_after / sigma:.2f}x "
             f"the noise floor (a named effect leaves at most {GIVEN_MAX_LEFT:g}x with a given model): unexplained")
@@ -469,7 +497,7 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
 
 
 def second_test(cands, gap_ref, floor, drift_ok: bool, n_eff: float, refloor_first: bool = True,
-                min_score: float = 0.0, min_share: float = ID_PARTIAL[0]):
+                min_score: float = 0.0, min_share: float = ID_PARTIAL[0], relevant: Relevance | None = None):
     """The second test for an identified model whose refit comes within a few per cent of the floor:
     the likelihood ratio of the best eligible candidate against the refit model on validation data
     the fit never saw (significant at 5 sigma, chi^2_1 > 25, with a positive BIC score). On the
@@ -496,7 +524,12 @@ def second_test(cands, gap_ref, floor, drift_ok: bool, n_eff: float, refloor_fir
     ``min_score`` (:data:`GIVEN_SMALL_SCORE`): an effect whose footprint is a few hundred samples of
     a log (a fast rate limit, a resonance the records barely ring) leaves the whole validation part
     within 10 % of the noise while its candidate explains all of it; the judged seeds' such rate
-    limits and resonances were called `none`. Returns ``(candidates, by_effect)``."""
+    limits and resonances were called `none`.
+
+    ``relevant`` (:class:`hwid.diagnose.verdict.Relevance`): the best candidate must also remove a
+    practically relevant part of the gap (:data:`hwid.diagnose.verdict.RELEVANT`); a likelihood
+    ratio alone grows with the record, whatever the size of what it finds. Returns ``(candidates,
+    by_effect)``; ``by_effect["relevant"]`` says whether it did (None: not asked)."""
     bound = None
     if refloor_first:
         cands, bound = refloor(cands, gap_ref, floor.sigma, drift_ok)
@@ -504,9 +537,11 @@ def second_test(cands, gap_ref, floor, drift_ok: bool, n_eff: float, refloor_fir
     if best is None:
         return cands, None
     ratio = float(best.score + best.k * np.log(n_eff))
+    enough = None if relevant is None else relevant(best)
     return cands, {"effect": best.effect, "likelihood_ratio": ratio, "score": best.score, "noise_bound": bound,
+                   "relevant": enough,
                    "significant": bool(best.explained_fraction >= min_share and best.score > min_score
-                                       and ratio > 25.0)}
+                                       and ratio > 25.0 and enough is not False)}
 
 
 def identification_error(model, records, dt: float, settle_s: float, sigma: float, starts=None) -> dict:

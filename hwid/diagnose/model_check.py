@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from hwid import adequacy
+from hwid.diagnose import gap
 from hwid.diagnose.context import Context
 
 
@@ -85,3 +86,41 @@ def adequacy_tail(ctx: Context) -> str:
         return ""
     return (f"; the model on {adequacy_where(ctx)}: RMS {ad.rms_fit:.4g} = {ad.ratio:.3g} x the floor "
             f"{ad.floor.sigma:.4g} ({ad.verdict})")
+
+
+def changed_or_inadequate(ctx: Context, gap_before: float, gap_ref: float, n_val: int, min_ratio: float,
+                          id_err: dict | None, generalise_ratio: float) -> str:
+    """Why the verdict is ``unexplained`` where the identified model misses the validation records
+    and its refit on the diagnosis's own fit records (h, F and G re-estimated, ``gap_ref``) reaches
+    the floor; ``""`` where that is not so, or where the refit's gap is the honest reading.
+
+    The refit shows that a model of the same structure fits the plant as it is now. If the
+    identified model also misses its own records (:func:`fails_own_records`: it was fitted across
+    a change, or cannot fit them), or misses the validation records more than ``generalise_ratio``
+    times as far as its own (the plant changed after it was identified), the plant changed or the
+    model was not adequate, and no effect is credited with the refit's shrink. Where neither holds,
+    the identified model's error is its own and the verdict follows the refit's gap (``none``)."""
+    if not ctx.identified:
+        return ""
+    floor = ctx.floor
+    if not gap.gap_test(gap_before, n_val, floor, min_ratio=min_ratio).significant:
+        return ""
+    if gap.gap_test(gap_ref, n_val, floor, min_ratio=min_ratio).significant:
+        return ""
+    misfit = fails_own_records(ctx, min_ratio)
+    own = float((id_err or {}).get("gap", 0.0) or 0.0)
+    over_own = gap_before / max(own, floor.sigma) if (id_err or {}).get("records") else 0.0
+    if misfit is None and not over_own > generalise_ratio:
+        return ""
+    if misfit is not None:
+        rms = misfit.rms_fit if misfit.rms_held_out is None else max(misfit.rms_fit, misfit.rms_held_out)
+        cause = (f"it misses {adequacy_where(ctx)} too (RMS {rms:.4g} = {misfit.ratio:.3g}x their floor): the plant "
+                 "changed while it was identified, or the model was not adequate")
+    else:
+        cause = (f"it misses them {over_own:.3g}x as far as its own records: the plant changed since it was "
+                 "identified, or the model was not adequate beyond its own records")
+    why = (f"the identified model misses the validation records by {gap_before / floor.sigma:.3g}x the noise floor "
+           f"{floor.sigma:.4g}, while the same model refitted on the diagnosis's own records reaches it "
+           f"({gap_ref:.4g} = {gap_ref / floor.sigma:.3g}x); {cause}. No effect is credited with what the refit "
+           "removes: unexplained")
+    return why

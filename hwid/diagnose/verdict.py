@@ -125,6 +125,52 @@ def refloor(cands: list[Candidate], gap_before: float, sigma: float,
     return out, floor
 
 
+#: What an effect must remove to be named, both asked (:class:`Relevance`): ``(share, margin)``,
+#: measured from the baseline the effect was fitted against (the model itself, or an identified
+#: model's refit: what the refit removes by itself is no effect's).
+#:
+#: * ``share``: at least this fraction of the baseline's excess over the noise, in mean square
+#:   (``gap_base^2 - gap_after^2 >= share (gap_base^2 - sigma^2)``): an effect that leaves nine
+#:   tenths of what it is measured against has not found what makes the gap, however small the
+#:   gap. It is a floor under the verdict's other routes (the test that finds what an effect leaves
+#:   to be noise, the second test near the floor), which ask no share of an identified model.
+#: * ``margin``: the RMS gap falls by at least this fraction of the noise floor. The floor from the
+#:   repeats is itself known to about ``sqrt(kappa / 2n)``, 1.1-1.6 % over the 2000-4000 samples
+#:   of a diagnosis's repeats: a smaller fall is within what the floor's own error allows, however
+#:   large the likelihood ratio a long record gives it. A delay credited with a refit's shrink
+#:   (issue 47: 73 % of a refit left 1 % above the floor) took 0.9 % of the floor off the gap; the
+#:   right names held near the floor that the second test was built for took 2.6 % (a 0.36 s
+#:   delay, identified: 1.036x -> 1.010x) to 9 % (a sensor clip, identified: 1.037x -> 0.944x).
+RELEVANT = (0.1, 0.02)
+
+
+@dataclass(frozen=True)
+class Relevance:
+    """Whether an effect removes a practically relevant part of the gap (:data:`RELEVANT`):
+    ``gap_base`` is the RMS gap of the baseline every candidate was measured against (the model
+    itself, or its refit), ``sigma`` the noise floor."""
+
+    gap_base: float
+    sigma: float
+
+    def __call__(self, c: "Candidate") -> bool:
+        share, margin = RELEVANT
+        if not np.isfinite(c.gap_after):
+            return False
+        removed = self.gap_base ** 2 - c.gap_after ** 2
+        return bool(removed >= share * max(self.gap_base ** 2 - self.sigma ** 2, 0.0)
+                    and self.gap_base - c.gap_after >= margin * self.sigma)
+
+    def describe(self, c: "Candidate") -> str:
+        """Why ``c`` removes too little, in numbers."""
+        removed = self.gap_base ** 2 - c.gap_after ** 2
+        excess = max(self.gap_base ** 2 - self.sigma ** 2, 1e-300)
+        return (f"{c.effect} takes the gap from {self.gap_base:.4g} (the baseline it was fitted against) to "
+                f"{c.gap_after:.4g}: {removed / excess:.3g} of that baseline's mean-square excess over the floor "
+                f"and {(self.gap_base - c.gap_after) / self.sigma:.3g} of the floor {self.sigma:.4g}; a named effect "
+                f"removes at least {RELEVANT[0]:g} of the one and {RELEVANT[1]:g} of the other")
+
+
 #: The most parameters an effect named for part of the excess may have (``partial`` in
 #: :func:`eligible`). A one- or two-parameter effect (a clip, a slew, a dead zone, a lag) explains
 #: a share only by being there; a family chosen in shape from the data (curved borders, 5-13
@@ -136,7 +182,8 @@ PARTIAL_MAX_PARAMS = 2
 
 
 def eligible(c: Candidate, drift_plausible: bool, threshold: float = 0.5, leaves_noise=None,
-             max_left: float | None = None, partial: tuple[float, float] | None = None) -> bool:
+             max_left: float | None = None, partial: tuple[float, float] | None = None,
+             relevant: Relevance | None = None) -> bool:
     """Whether ``c`` could be the verdict: it pays for its parameters (a positive score), leaves at
     most ``max_left`` (an RMS gap; ``None``: no bound) and either explains at least ``threshold`` of
     the excess, or leaves a gap the gap test takes for noise (``leaves_noise(gap_after)``, the same
@@ -149,10 +196,15 @@ def eligible(c: Candidate, drift_plausible: bool, threshold: float = 0.5, leaves
     test no longer tells it from noise has explained all that the records can show, whatever share
     of the excess that is. The third is the same for an identified model a little further from the
     floor (:data:`hwid.diagnose.conclude.ID_PARTIAL`), and only for an effect of at most
-    :data:`PARTIAL_MAX_PARAMS` parameters."""
+    :data:`PARTIAL_MAX_PARAMS` parameters.
+
+    ``relevant`` (:class:`Relevance`; ``None``: not asked): whatever else, the effect removes a
+    practically relevant part of the gap (:data:`RELEVANT`)."""
     if c.effect == "drift" and not drift_plausible:
         return False
     if not c.score > 0:
+        return False
+    if relevant is not None and not relevant(c):
         return False
     if max_left is not None and not c.gap_after <= max_left:
         return False
@@ -164,7 +216,7 @@ def eligible(c: Candidate, drift_plausible: bool, threshold: float = 0.5, leaves
 
 def verdict(cands: list[Candidate], significant: bool, drift_plausible: bool,
             threshold: float = 0.5, leaves_noise=None, max_left: float | None = None,
-            partial: tuple[float, float] | None = None) -> Candidate | None | str:
+            partial: tuple[float, float] | None = None, relevant: Relevance | None = None) -> Candidate | None | str:
     """``"none"`` when the gap is noise; the first ranked candidate if it could be the verdict
     (:func:`eligible`: it explains at least ``threshold`` of the excess, or leaves only noise, pays
     for its parameters and leaves at most ``max_left``); else ``"unexplained"``.
@@ -176,7 +228,7 @@ def verdict(cands: list[Candidate], significant: bool, drift_plausible: bool,
     for c in cands:
         if c.effect == "drift" and not drift_plausible:
             continue
-        return c if eligible(c, drift_plausible, threshold, leaves_noise, max_left, partial) else "unexplained"
+        return c if eligible(c, drift_plausible, threshold, leaves_noise, max_left, partial, relevant) else "unexplained"
     return "unexplained"
 
 
@@ -218,14 +270,14 @@ def paired_stats(sums, sigma: float) -> tuple[float, float, float]:
 
 def indistinguishable(cands: list[Candidate], y_val, m_val, sigma: float, kappa: float, drift_plausible: bool,
                       threshold: float = 0.5, leaves_noise=None, max_left: float | None = None,
-                      partial: tuple[float, float] | None = None) -> list[dict]:
+                      partial: tuple[float, float] | None = None, relevant: Relevance | None = None) -> list[dict]:
     """Groups of catalogue effects that fit these records equally well within the noise.
 
     Among the candidates that could be a verdict (:func:`eligible`), in ranked order: each group is
     the best remaining one and every other whose squared errors on the validation data are not
     :data:`SEPARATE_Z` standard deviations apart from it (:func:`paired_z`). Only groups of two or
     more are returned, each as ``{"effects", "gap_after", "z"}`` (``z`` against the group's first)."""
-    able = [c for c in cands if eligible(c, drift_plausible, threshold, leaves_noise, max_left, partial)
+    able = [c for c in cands if eligible(c, drift_plausible, threshold, leaves_noise, max_left, partial, relevant)
             and c.predictions]
     groups = []
     while able:
