@@ -22,6 +22,7 @@ inside the smoother's window) is left out of the floor before pooling.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -108,6 +109,17 @@ class Adequacy:
                 "floor": self.floor.to_dict(), "ratio": self.ratio, "whiteness_p": self.whiteness_p,
                 "input_correlation_p": self.input_correlation_p, "reason": self.reason, "scored": self.scored,
                 "bound": self.bound, "model_error": self.model_error}
+
+    @classmethod
+    def from_dict(cls, d: dict | None) -> "Adequacy | None":
+        """Inverse of :meth:`to_dict` (the derived ``model_error`` and the floor's ``interval`` are
+        computed again, not read); None for None or an empty dict."""
+        if not d:
+            return None
+        fields = {f.name for f in dataclasses.fields(NoiseFloor)}
+        floor = NoiseFloor(**{k: v for k, v in d["floor"].items() if k in fields})
+        own = {f.name for f in dataclasses.fields(cls)}
+        return cls(**{k: v for k, v in d.items() if k in own and k != "floor"}, floor=floor)
 
 
 # ----------------------------------------------------------------------------------------------

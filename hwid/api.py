@@ -390,17 +390,9 @@ class Model:
             import json
             d = json.loads(summary.read_text(encoding="utf-8"))
             route, why = d.get("route", route), d.get("why", why)
-            adequacy = _adequacy_from_dict(d.get("adequacy"))
+            from hwid.adequacy import Adequacy
+            adequacy = Adequacy.from_dict(d.get("adequacy"))
         return cls(model, route, why, adequacy, None, {"info": info})
-
-
-def _adequacy_from_dict(d: dict | None):
-    """An :class:`hwid.adequacy.Adequacy` from its ``to_dict()``; None for None."""
-    if not d:
-        return None
-    from hwid.adequacy import Adequacy, NoiseFloor
-    floor = NoiseFloor(**{k: v for k, v in d["floor"].items() if k != "interval"})
-    return Adequacy(**{**d, "floor": floor})
 
 
 def _as_model(model):

@@ -176,3 +176,10 @@ def test_correlated_noise_floor_and_no_false_alarm():
         cover += lo <= SIGMA <= hi
         misfits += adequacy.assess(model(), recs).misfit
     assert cover >= 34 and misfits <= 3, (cover, misfits)
+
+
+def test_from_dict_inverts_to_dict():
+    ad = adequacy.assess(model(), own_records(29))
+    back = adequacy.Adequacy.from_dict(ad.to_dict())
+    assert back == ad and back.to_dict() == ad.to_dict()
+    assert adequacy.Adequacy.from_dict(None) is None
