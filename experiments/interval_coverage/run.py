@@ -8,7 +8,7 @@ measured and printed (the tests stay tests; this script gives the docs their num
 - ``whole``: tests/test_whole_coverage.py's setup (24 random levels joined by ramps, the same
   seeds), and the same with 12 levels.
 
-    python experiments/coverage/run.py [--stage1 250] [--history 100] [--whole 200] [--write]
+    python experiments/interval_coverage/run.py [--stage1 250] [--history 100] [--whole 200] [--write]
 
 Each count is the number of noise realisations (0 skips that part). ``--write`` replaces the
 fragments of docs/validation/monte-carlo.md (``docs/validation/generated/coverage_*.md``).
@@ -155,7 +155,7 @@ def main(argv=None) -> int:
     ap.add_argument("--write", action="store_true", help="write the docs page's fragments (docs/validation/generated/)")
     a = ap.parse_args(argv)
     warnings.simplefilter("ignore")
-    script = "experiments/coverage/run.py"
+    script = "experiments/interval_coverage/run.py"
     parts = []
     if a.stage1:
         parts.append(("coverage_stage1", page_stage1, lambda: stage1(a.stage1)))
