@@ -41,9 +41,9 @@ paper: $(STAMP)
 	$(BIN)/python experiments/paper/run.py
 
 # Every validation page's tables, written by the scripts that measure them (docs/validation/generated/,
-# each stamped with its script, commit, date and machine): the Monte Carlo pages (hours on 2 cores at
-# the scripts' default run counts; the sweeps resume in a folder per commit), then the timings (only
-# on a quiet machine) and the peers (in .venv-peers). The blind checks' table comes from
+# each stamped with its script, commit, date and machine): the Monte Carlo pages (the scripts' default
+# run counts; the sweeps resume in a folder per commit), then the timings (only on a quiet machine)
+# and the peers (in .venv-peers). The blind checks' table comes from
 # experiments/diagnosis_blind/table.py after its runs (docs/validation/blind.md).
 VALIDATION_RUNS := runs/validation/$(shell git rev-parse --short HEAD 2>/dev/null || echo unknown)
 
