@@ -71,12 +71,12 @@ def main() -> int:
     print(table(summary, NAMES1 + NAMES2))
     errs = {p["overrides"]["plant.noise.std"]: p["n_errors"] for p in summary["points"]}
     print(f"runs that failed (estimator refused the data) per sigma: {errs}")
-    save_figures(summary, Path(__file__).parent / "results", {"stage1": NAMES1, "stage2": NAMES2})
-    print(f"batch file: {path}; figures: experiments/noise_sweep/results/")
     if a.write:
         md = page(summary, a.runs, seconds_per_run(path, len(summary["points"])))
         print(md)
         print(f"wrote {write('noise_sweep', md, 'experiments/noise_sweep/run.py')}")
+    save_figures(summary, Path(__file__).parent / "results", {"stage1": NAMES1, "stage2": NAMES2})
+    print(f"batch file: {path}; figures: experiments/noise_sweep/results/")
     return 0
 
 

@@ -82,12 +82,12 @@ def main() -> int:
             first[m] = N
     for m in ("nls", "paper"):
         print(f"{m}: the paper's Table 2 accuracy is reached from N = {first.get(m, 'none of the swept')} periods")
-    save_figures(summary, Path(__file__).parent / "results", {"stage2": names})
-    print(f"batch file: {path}")
     if a.write:
         md = page(summary, a.runs, seconds_per_run(path, len(summary["points"])))
         print(md)
         print(f"wrote {write('periods_sweep', md, 'experiments/periods_sweep/run.py')}")
+    save_figures(summary, Path(__file__).parent / "results", {"stage2": names})
+    print(f"batch file: {path}")
     return 0
 
 

@@ -139,6 +139,12 @@ def main(seeds: int, write_it: bool = False) -> None:
         table.setdefault((method, round(rig)), []).append(ratio)
     for (method, rig), ratios in sorted(table.items()):
         print(f"| {method} | {rig} | {np.median(ratios):.3f} ({max(ratios):.3f}) |")
+    if write_it:
+        sys.path.insert(0, str(HERE.parents[1] / "docs"))
+        from fragment import write
+        md = page(table, seeds, time.perf_counter() - t0)
+        print(md)
+        print(f"wrote {write('rig_time', md, 'experiments/rig_time/run.py')}")
     import matplotlib
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
@@ -155,13 +161,6 @@ def main(seeds: int, write_it: bool = False) -> None:
     fig.tight_layout()
     fig.savefig(HERE / "rig_time.png", dpi=110)
     print(f"wrote {HERE / 'rig_time.png'}")
-    if write_it:
-        sys.path.insert(0, str(HERE.parents[1] / "docs"))
-        from fragment import write
-        md = page(table, seeds, time.perf_counter() - t0)
-        print(md)
-        print(f"wrote {write('rig_time', md, 'experiments/rig_time/run.py')}")
-
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
