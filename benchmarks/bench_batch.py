@@ -17,6 +17,8 @@ Usage::
     .venv/bin/python benchmarks/bench_batch.py                      # 1,000 runs + 100-run scaling
     .venv/bin/python benchmarks/bench_batch.py --runs 100 --scaling-runs 20
     .venv/bin/python benchmarks/bench_batch.py --runs 0             # scaling only
+
+``--write`` also writes the output as its fragment of docs/validation/benchmarks.md.
 """
 from __future__ import annotations
 
@@ -122,4 +124,5 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from benchpage import run
+    sys.exit(run("bench_batch", "benchmarks/bench_batch.py", main))

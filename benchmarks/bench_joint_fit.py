@@ -4,12 +4,13 @@ the plant): time per residual evaluation, h's design matrix built on the scored 
 masked; and h's Legendre basis, :func:`hwid.blocks.static.legendre_vander` against numpy's
 ``legvander``. One core; 12 experiments of 3,000 samples, 30 % of each unscored (the lead-in).
 
-Usage: ``.venv/bin/python benchmarks/bench_joint_fit.py``
+Usage: ``.venv/bin/python benchmarks/bench_joint_fit.py [--write]``; ``--write`` also writes its output as the fragment of docs/validation/benchmarks.md
 """
 from __future__ import annotations
 
 import os
 import platform
+import sys
 import time
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
@@ -76,4 +77,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from benchpage import run
+    sys.exit(run("bench_joint_fit", "benchmarks/bench_joint_fit.py", main))

@@ -27,7 +27,9 @@ quantum alone leaves ``1/sqrt(12)`` count.
 
 sysidentpy pins an older numpy, so the peers get a virtual environment of their own:
 ``python3.11 -m venv .venv-peers && .venv-peers/bin/pip install -e '.[peers]'``; then
-``.venv-peers/bin/python benchmarks/bench_peers.py [PLANT ... | sts]`` prints the tables (every plant and the STS3215 logs when none is named).
+``.venv-peers/bin/python benchmarks/bench_peers.py [PLANT ... | sts] [--write]`` prints the tables (every plant and the STS3215 logs when none is named).
+``--write`` replaces the tables of docs/validation/peers.md (``docs/validation/generated/peers_*.md``)
+with those measured in this call.
 """
 from __future__ import annotations
 
@@ -332,10 +334,45 @@ def _number(x: float) -> str:
     return "diverged" if not np.isfinite(x) or x > 1e6 else f"{x:.3g}"
 
 
+def pivot(rows: list[tuple], keys: int, value) -> str:
+    """A markdown table with one row per the first ``keys`` fields of ``rows`` and one column per
+    method (in the order met); ``value(row)`` is the cell's text."""
+    methods = list(dict.fromkeys(r[keys] for r in rows))
+    cells: dict[tuple, dict[str, str]] = {}
+    for r in rows:
+        cells.setdefault(tuple(r[:keys]), {})[r[keys]] = value(r)
+    head = ["plant", "data"] if keys == 2 else ["log (motor)"]
+    lines = ["| " + " | ".join(head + methods) + " |", "|---" * (len(head) + len(methods)) + "|"]
+    for k, by in cells.items():
+        lines.append("| " + " | ".join([*k, *(by.get(m, "–") for m in methods)]) + " |")
+    return "\n".join(lines)
+
+
+def write_pages(rows: list[tuple], sts: list[tuple]) -> None:
+    """The docs page's two tables as fragments: RMS over sigma on the simulated plants; RMS in
+    counts (every sample / pullers relaxed) on the STS3215 logs."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "docs"))
+    from fragment import write
+    env = f"numpy {np.__version__} in the peers' environment"
+    if rows:
+        # the truth's row (design "-") becomes a column beside every design of its plant
+        truth = {r[0]: r for r in rows if r[1] == "-"}
+        sim = [r for r in rows if r[1] != "-"]
+        sim += [(p, d, *truth[p][2:]) for p, d in dict.fromkeys((r[0], r[1]) for r in sim) if p in truth]
+        md = (f"Held-out free-run RMS / σ (1.0 is the floor); {env}.\n\n"
+              + pivot(sim, 2, lambda r: _number(r[3])))
+        print(f"wrote {write('peers_simulated', md, 'benchmarks/bench_peers.py')}")
+    if sts:
+        md = (f"Mean held-out free-run RMS in counts, every sample / pullers relaxed; the encoder's quantum alone "
+              f"leaves {1 / np.sqrt(12):.2f}; {env}.\n\n" + pivot(sts, 1, lambda r: f"{_number(r[2])} / {_number(r[3])}"))
+        print(f"wrote {write('peers_sts', md, 'benchmarks/bench_peers.py')}")
+
+
 def main():
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
           f"numpy {np.__version__}")
-    only = set(sys.argv[1:])          # plant names, or "sts"; none: all of them
+    write_it = "--write" in sys.argv[1:]
+    only = set(sys.argv[1:]) - {"--write"}          # plant names, or "sts"; none: all of them
     rows = []
     for name in PLANTS:
         if not only or name in only:
@@ -358,6 +395,8 @@ def main():
         print("|---|---|---|---|---|---|")
         for log, method, rms_all, rms_relaxed, seconds, tuned in sts:
             print(f"| {log} | {method} | {_number(rms_all)} | {_number(rms_relaxed)} | {seconds:.1f} | {tuned} |")
+    if write_it:
+        write_pages(rows, sts)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """Recorded data at scale (issue 15's benchmarks): reading and resampling a 10^7-row, 4-column CSV
 with ISO 8601 timestamps, and stage 1 from a history of 1,000 recorded levels.
 
-Usage: ``python benchmarks/bench_recorded.py [--rows 10000000] [--levels 1000]``. The CSV is
+Usage: ``python benchmarks/bench_recorded.py [--rows 10000000] [--levels 1000] [--write]``; ``--write`` also writes its output as the fragment of docs/validation/benchmarks.md. The CSV is
 written once to a temporary folder (about 0.5 GB) and removed afterwards; the figures are printed.
 """
 from __future__ import annotations
@@ -73,7 +73,7 @@ def bench_levels(n_levels: int) -> None:
           f"[{res.ci['dead_band'][0]:.4f}, {res.ci['dead_band'][1]:.4f}] (truth 1.0)")
 
 
-if __name__ == "__main__":
+def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--rows", type=int, default=10_000_000)
     ap.add_argument("--levels", type=int, default=1000)
@@ -81,3 +81,8 @@ if __name__ == "__main__":
     bench_levels(args.levels)
     with tempfile.TemporaryDirectory() as tmp:
         bench_csv(args.rows, Path(tmp))
+
+
+if __name__ == "__main__":
+    from benchpage import run
+    sys.exit(run("bench_recorded", "benchmarks/bench_recorded.py", main))

@@ -6,12 +6,13 @@ of five, checks the goal (with noise >= 5*10^7 samples/s at 10^6 and 10^7 sample
 plain Python loop of the same chain with noise (run on 2*10^5 samples and reported per sample).
 Single-threaded; on a shared machine pin it to one core (``taskset -c 1``) and take the best of a
 few invocations.
-Usage: ``.venv/bin/python benchmarks/bench_simulate.py``
+Usage: ``.venv/bin/python benchmarks/bench_simulate.py [--write]``; ``--write`` also writes its output as the fragment of docs/validation/benchmarks.md
 """
 from __future__ import annotations
 
 import os
 import platform
+import sys
 import time
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
@@ -86,4 +87,5 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    from benchpage import run
+    sys.exit(run("bench_simulate", "benchmarks/bench_simulate.py", main))

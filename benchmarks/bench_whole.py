@@ -2,12 +2,13 @@
 record's initial state) on 10^5 samples of random levels joined by ramps, to convergence, on one
 core; and the chain's simulation alone (no noise) per sample.
 
-Usage: ``.venv/bin/python benchmarks/bench_whole.py``
+Usage: ``.venv/bin/python benchmarks/bench_whole.py [--write]``; ``--write`` also writes its output as the fragment of docs/validation/benchmarks.md
 """
 from __future__ import annotations
 
 import os
 import platform
+import sys
 import time
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
@@ -75,4 +76,5 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    from benchpage import run
+    sys.exit(run("bench_whole", "benchmarks/bench_whole.py", main))

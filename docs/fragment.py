@@ -18,15 +18,19 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 FOLDER = ROOT / "docs" / "validation" / "generated"
+#: git pathspecs of what the measuring scripts write: not counted as changes of the measured tree
+OUTPUTS = ("docs/validation/generated", "*.png", "*.svg")
 
 
 def commit(root: Path = ROOT) -> str:
     """The commit checked out at ``root`` (short hash), ``+changes`` where the tree differs from it;
-    ``unknown`` outside a git checkout."""
+    ``unknown`` outside a git checkout. What the measuring scripts themselves rewrite (the fragments,
+    figures) is not a change of the code measured, so it does not count."""
     try:
         head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
                               text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no", "--", ".",
+                                *(f":(exclude){p}" for p in OUTPUTS)],
                                capture_output=True, text=True, check=True).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"

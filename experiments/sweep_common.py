@@ -35,6 +35,26 @@ def table(summary, names, stats=("rmse", "coverage", "efficiency")) -> str:
     return "\n".join(lines)
 
 
+def mc_error(n: int, p: float = 0.95) -> float:
+    """The Monte Carlo error of a coverage over ``n`` runs: two binomial standard deviations at ``p``."""
+    import math
+    return 2 * math.sqrt(p * (1 - p) / n) if n else float("nan")
+
+
+def coverage_range(stats: dict, names) -> str:
+    """``lo–hi`` of the coverages of ``names`` in one sweep point's stats (empty when none has one)."""
+    cov = [stats[n]["coverage"] for n in names if n in stats and "coverage" in stats[n]]
+    return f"{min(cov):.3f}–{max(cov):.3f}" if cov else ""
+
+
+def seconds_per_run(path: Path, n_points: int) -> float:
+    """Median seconds of one run (in its worker) over every point of ``batch.h5``."""
+    import numpy as np
+    from hwid.results import read_batch_runs
+    sec = np.concatenate([read_batch_runs(path, i)["seconds"] for i in range(n_points)])
+    return float(np.nanmedian(sec))
+
+
 def save_figures(summary, out: Path, names_groups: dict):
     os.environ.setdefault("MPLBACKEND", "Agg")
     from hwid.report.figures import plot_batch_summary
