@@ -23,11 +23,16 @@ for every log and motor under test, every method is fitted on one half of the lo
 judged by free-run RMS (counts) on the other half, both ways round: over every sample, and over the
 samples where both puller servos are relaxed (their pushes move the output through the play while
 the target holds, a load no method here has an input for). There is no truth there; the encoder's
-quantum alone leaves ``1/sqrt(12)`` count.
+quantum alone leaves ``1/sqrt(12)`` count. ``hwid corrected`` is the diagnosis's product: ``hwid
+diagnose`` from the fitting half alone (it identifies the model on part of it and scores the
+catalogue's effects on the rest), its ``corrected.yaml`` run free on the other half like the rest;
+its column names each half's verdict, with the gap before and after against the noise floor.
 
 sysidentpy pins an older numpy, so the peers get a virtual environment of their own:
 ``python3.11 -m venv .venv-peers && .venv-peers/bin/pip install -e '.[peers]'``; then
-``.venv-peers/bin/python benchmarks/bench_peers.py [PLANT ... | sts]`` prints the tables (every plant and the STS3215 logs when none is named).
+``.venv-peers/bin/python benchmarks/bench_peers.py [PLANT ... | sts]`` prints the tables (every plant and the STS3215 logs when none is named). ``--hwid-only`` leaves the
+peers and the simulated plants out: hwid's columns on the STS3215 logs (``hwid whole``, ``from stage
+1``, ``hwid corrected``) in any environment with hwid installed.
 """
 from __future__ import annotations
 
@@ -293,7 +298,35 @@ def sts_whole(cfg, records, staged: bool) -> HWModel:
     return WholeModelFit.from_config(cfg, staged=staged).fit(records, borders=borders).result_.model()
 
 
-def sts_rows() -> list[tuple]:
+def sts_corrected(record: Record, verdicts: list) -> HWModel:
+    """The corrected simulator of ``hwid diagnose`` from ``record`` alone (a recorded config on a
+    copy of it in a temporary folder): its ``corrected.yaml``, the model the diagnosis identified on
+    part of the record with the verdict's effect added at its fitted parameters (the model as it
+    was for ``none`` or ``unexplained``). The verdict, its gap before and after and the floor are
+    appended to ``verdicts``."""
+    import tempfile
+
+    from hwid.diagnose import diagnose
+    from hwid.diagnose.sim_side import load_model
+    with tempfile.TemporaryDirectory() as tmp:
+        csv = Path(tmp) / "half.csv"
+        np.savetxt(csv, np.column_stack([record.u, record.y]), delimiter=",", header="target,pos", comments="")
+        cfg = config.loads(yaml.safe_dump({
+            "name": "sts-half", "sampling": {"dt": float(record.dt)},
+            "plant": {"kind": "recorded", "experiments": [{"file": str(csv), "input": {"column": "target"},
+                                                           "output": {"column": "pos"}}]},
+            "identification": {"whole": {"enabled": True, "max_order": 2}}}))
+        s = diagnose(cfg, Path(tmp) / "diag", echo=lambda *a, **k: None)
+        verdicts.append((s["verdict"]["effect"], s["gap_before"], s["gap_after"], s["noise_floor"]))
+        model, _ = load_model(str(Path(tmp) / "diag" / "corrected.yaml"), echo=lambda *a, **k: None)
+    return model
+
+
+def _verdicts_note(verdicts: list) -> str:
+    return "diagnosis: " + "; ".join(f"{v} (gap {b:.3g} -> {a:.3g}, floor {f:.3g})" for v, b, a, f in verdicts)
+
+
+def sts_rows(hwid_only: bool = False) -> list[tuple]:
     """Every log and motor under test: each method fitted on one half, judged on the other, both
     ways round; the mean RMS (counts) over the two held-out halves, all samples and relaxed ones."""
     import pandas as pd
@@ -304,12 +337,14 @@ def sts_rows() -> list[tuple]:
         for stand in stands(pd.read_csv(path)):
             halves, relaxed, cfg = sts_halves(path, stand)
             name = f"{path.stem.removeprefix('motor_telemetry_')} (motor {stand.dut})"
+            verdicts: list = []
             methods = (("hwid whole", lambda r: sts_whole(cfg, r, False), "none"),
                        ("hwid whole, from stage 1", lambda r: sts_whole(cfg, r, True), "none"),
+                       ("hwid corrected", lambda r: sts_corrected(r[0], verdicts), "none"),
                        ("NARX (FROLS)", fit_narx, "degree 3, lags 2"),
                        ("linear OE", lambda r: fit_output_error(r, False), "G order 1-2"),
                        ("nlhw analogue", lambda r: fit_output_error(r, True), "dead zone, h degree 5, G order 1-2"))
-            for method, fit, tuned in methods:
+            for method, fit, tuned in methods[:3] if hwid_only else methods:
                 scores, seconds = [], 0.0
                 for k in (0, 1):
                     t0 = time.perf_counter()
@@ -322,6 +357,8 @@ def sts_rows() -> list[tuple]:
                         tuned = f"failed: {err}"
                         scores.append((float("nan"), float("nan")))
                 rms_all, rms_relaxed = np.mean(scores, axis=0)
+                if method == "hwid corrected" and verdicts:
+                    tuned = f"{tuned}; {_verdicts_note(verdicts)}"
                 rows.append((name, method, rms_all, rms_relaxed, seconds / 2, tuned))
             print(f"  {name}: {halves[0].u.size} + {halves[1].u.size} samples, "
                   f"{int(relaxed[0].sum() + relaxed[1].sum())} relaxed", flush=True)
@@ -335,15 +372,16 @@ def _number(x: float) -> str:
 def main():
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
           f"numpy {np.__version__}")
-    only = set(sys.argv[1:])          # plant names, or "sts"; none: all of them
+    hwid_only = "--hwid-only" in sys.argv[1:]
+    only = set(sys.argv[1:]) - {"--hwid-only"}      # plant names, or "sts"; none: all of them
     rows = []
     for name in PLANTS:
-        if not only or name in only:
+        if (not only or name in only) and not hwid_only:
             rows += run_plant(name)
     sts = []
     if not only or "sts" in only:
         if STS_FOLDER.is_dir():
-            sts = sts_rows()
+            sts = sts_rows(hwid_only)
         else:
             print(f"  STS3215 logs skipped: {STS_FOLDER} is absent")
     if rows:
