@@ -24,9 +24,9 @@ judged by free-run RMS (counts) on the other half, both ways round: over every s
 samples where both puller servos are relaxed (their pushes move the output through the play while
 the target holds, a load no method here has an input for). There is no truth there; the encoder's
 quantum alone leaves ``1/sqrt(12)`` count. ``hwid corrected`` is the diagnosis's product: ``hwid
-diagnose`` from the fitting half alone (it identifies the model on part of it and scores the
-catalogue's effects on the rest), its ``corrected.yaml`` run free on the other half like the rest;
-its column names each half's verdict, with the gap before and after against the noise floor.
+diagnose --model`` of the ``hwid whole`` model on the fitting half alone, its ``corrected.yaml``
+(that model with the verdict's effect added) run free on the other half like the rest; its column
+names each half's verdict, with the gap before and after against the noise floor.
 
 sysidentpy pins an older numpy, so the peers get a virtual environment of their own:
 ``python3.11 -m venv .venv-peers && .venv-peers/bin/pip install -e '.[peers]'``; then
@@ -298,27 +298,33 @@ def sts_whole(cfg, records, staged: bool) -> HWModel:
     return WholeModelFit.from_config(cfg, staged=staged).fit(records, borders=borders).result_.model()
 
 
-def sts_corrected(record: Record, verdicts: list) -> HWModel:
-    """The corrected simulator of ``hwid diagnose`` from ``record`` alone (a recorded config on a
-    copy of it in a temporary folder): its ``corrected.yaml``, the model the diagnosis identified on
-    part of the record with the verdict's effect added at its fitted parameters (the model as it
-    was for ``none`` or ``unexplained``). The verdict, its gap before and after and the floor are
-    appended to ``verdicts``."""
+def sts_corrected(cfg, record: Record, verdicts: list) -> HWModel:
+    """The corrected simulator of ``hwid diagnose --model`` on ``record`` alone: hwid's whole fit of
+    ``record`` (:func:`sts_whole`, the ``hwid whole`` column's model) saved as a run directory, the
+    diagnosis of it on a recorded config of a copy of ``record`` (it splits the record into blocks,
+    fits each catalogue effect on some and scores it on the others), and its ``corrected.yaml``: that
+    model with the verdict's effect added at its fitted parameters, or as it was for ``none`` and
+    ``unexplained``. (Identified by the diagnosis itself, a half's fit blocks hold too few levels.)
+    The verdict, its gap before and after and the noise floor are appended to ``verdicts``."""
     import tempfile
 
     from hwid.diagnose import diagnose
     from hwid.diagnose.sim_side import load_model
+    from hwid.results import write_whole
+    quiet = lambda *a, **k: None  # noqa: E731
+    result = WholeModelFit.from_config(cfg, staged=False).fit([record]).result_
     with tempfile.TemporaryDirectory() as tmp:
-        csv = Path(tmp) / "half.csv"
+        csv, run = Path(tmp) / "half.csv", Path(tmp) / "run"
         np.savetxt(csv, np.column_stack([record.u, record.y]), delimiter=",", header="target,pos", comments="")
-        cfg = config.loads(yaml.safe_dump({
+        half = config.loads(yaml.safe_dump({
             "name": "sts-half", "sampling": {"dt": float(record.dt)},
             "plant": {"kind": "recorded", "experiments": [{"file": str(csv), "input": {"column": "target"},
-                                                           "output": {"column": "pos"}}]},
-            "identification": {"whole": {"enabled": True, "max_order": 2}}}))
-        s = diagnose(cfg, Path(tmp) / "diag", echo=lambda *a, **k: None)
+                                                           "output": {"column": "pos"}}]}}))
+        run.mkdir()
+        write_whole(run / "whole.h5", cfg, result, "model")
+        s = diagnose(half, Path(tmp) / "diag", model=str(run), echo=quiet)
         verdicts.append((s["verdict"]["effect"], s["gap_before"], s["gap_after"], s["noise_floor"]))
-        model, _ = load_model(str(Path(tmp) / "diag" / "corrected.yaml"), echo=lambda *a, **k: None)
+        model, _ = load_model(str(Path(tmp) / "diag" / "corrected.yaml"), echo=quiet)
     return model
 
 
@@ -340,7 +346,7 @@ def sts_rows(hwid_only: bool = False) -> list[tuple]:
             verdicts: list = []
             methods = (("hwid whole", lambda r: sts_whole(cfg, r, False), "none"),
                        ("hwid whole, from stage 1", lambda r: sts_whole(cfg, r, True), "none"),
-                       ("hwid corrected", lambda r: sts_corrected(r[0], verdicts), "none"),
+                       ("hwid corrected", lambda r: sts_corrected(cfg, r[0], verdicts), "none"),
                        ("NARX (FROLS)", fit_narx, "degree 3, lags 2"),
                        ("linear OE", lambda r: fit_output_error(r, False), "G order 1-2"),
                        ("nlhw analogue", lambda r: fit_output_error(r, True), "dead zone, h degree 5, G order 1-2"))
