@@ -148,7 +148,7 @@ def grid_check(corrected: Path, tmp: Path) -> dict:
     for label, u in (("as recorded", rec.u), ("smoothed", smooth)):
         du = np.diff(u)
         result, _ = compare_records(model, [Record(rec.name, rec.dt, u, rec.y)])
-        out[label] = {"fit_percent": result.fit_percent, "rms": result.rms,
+        out[label] = {"fit_percent": result.fit_percent, "rms": result.rms, "floor": result.noise_floor,
                       "reversals": int(np.sum(np.diff(np.sign(du[du != 0])) != 0))}
     return out
 
@@ -203,7 +203,8 @@ def grid_note(check: dict) -> str:
     raw, smooth = check["as recorded"], check["smoothed"]
     return (f"\nThe same corrected model on the fitted test at the recording's own 1024 Hz: fit "
             f"{raw['fit_percent']:.1f} % on the displacement as recorded ({raw['reversals']} reversals of its "
-            f"direction), {smooth['fit_percent']:.1f} % on it smoothed over 40 ms ({smooth['reversals']} reversals).\n")
+            f"direction), {smooth['fit_percent']:.1f} % on it smoothed over 40 ms ({smooth['reversals']} reversals); "
+            f"RMS {raw['rms']:.3f} kip against the noise floor {raw['floor']:.3f} kip read there.\n")
 
 
 def level_note(scores: list[Score], records: dict) -> str:
