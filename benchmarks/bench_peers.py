@@ -23,13 +23,18 @@ for every log and motor under test, every method is fitted on one half of the lo
 judged by free-run RMS (counts) on the other half, both ways round: over every sample, and over the
 samples where both puller servos are relaxed (their pushes move the output through the play while
 the target holds, a load no method here has an input for). There is no truth there; the encoder's
-quantum alone leaves ``1/sqrt(12)`` count.
+quantum alone leaves ``1/sqrt(12)`` count. ``hwid corrected`` is the diagnosis's product: ``hwid
+diagnose --model`` of the ``hwid whole`` model on the fitting half alone, its ``corrected.yaml``
+(that model with the verdict's effect added) run free on the other half like the rest; its column
+names each half's verdict, with the gap before and after against the noise floor.
 
 sysidentpy pins an older numpy, so the peers get a virtual environment of their own:
 ``python3.11 -m venv .venv-peers && .venv-peers/bin/pip install -e '.[peers]'``; then
 ``.venv-peers/bin/python benchmarks/bench_peers.py [PLANT ... | sts] [--write]`` prints the tables (every plant and the STS3215 logs when none is named).
 ``--write`` replaces the tables of docs/validation/peers.md (``docs/validation/generated/peers_*.md``)
-with those measured in this call.
+with those measured in this call. ``--hwid-only`` leaves the peers and the simulated plants out:
+hwid's columns on the STS3215 logs (``hwid whole``, ``from stage 1``, ``hwid corrected``) in any
+environment with hwid installed.
 """
 from __future__ import annotations
 
@@ -295,7 +300,41 @@ def sts_whole(cfg, records, staged: bool) -> HWModel:
     return WholeModelFit.from_config(cfg, staged=staged).fit(records, borders=borders).result_.model()
 
 
-def sts_rows() -> list[tuple]:
+def sts_corrected(cfg, record: Record, verdicts: list) -> HWModel:
+    """The corrected simulator of ``hwid diagnose --model`` on ``record`` alone: hwid's whole fit of
+    ``record`` (:func:`sts_whole`, the ``hwid whole`` column's model) saved as a run directory, the
+    diagnosis of it on a recorded config of a copy of ``record`` (it splits the record into blocks,
+    fits each catalogue effect on some and scores it on the others), and its ``corrected.yaml``: that
+    model with the verdict's effect added at its fitted parameters, or as it was for ``none`` and
+    ``unexplained``. (Identified by the diagnosis itself, a half's fit blocks hold too few levels.)
+    The verdict, its gap before and after and the noise floor are appended to ``verdicts``."""
+    import tempfile
+
+    from hwid.diagnose import diagnose
+    from hwid.diagnose.sim_side import load_model
+    from hwid.results import write_whole
+    quiet = lambda *a, **k: None  # noqa: E731
+    result = WholeModelFit.from_config(cfg, staged=False).fit([record]).result_
+    with tempfile.TemporaryDirectory() as tmp:
+        csv, run = Path(tmp) / "half.csv", Path(tmp) / "run"
+        np.savetxt(csv, np.column_stack([record.u, record.y]), delimiter=",", header="target,pos", comments="")
+        half = config.loads(yaml.safe_dump({
+            "name": "sts-half", "sampling": {"dt": float(record.dt)},
+            "plant": {"kind": "recorded", "experiments": [{"file": str(csv), "input": {"column": "target"},
+                                                           "output": {"column": "pos"}}]}}))
+        run.mkdir()
+        write_whole(run / "whole.h5", cfg, result, "model")
+        s = diagnose(half, Path(tmp) / "diag", model=str(run), echo=quiet)
+        verdicts.append((s["verdict"]["effect"], s["gap_before"], s["gap_after"], s["noise_floor"]))
+        model, _ = load_model(str(Path(tmp) / "diag" / "corrected.yaml"), echo=quiet)
+    return model
+
+
+def _verdicts_note(verdicts: list) -> str:
+    return "diagnosis: " + "; ".join(f"{v} (gap {b:.3g} -> {a:.3g}, floor {f:.3g})" for v, b, a, f in verdicts)
+
+
+def sts_rows(hwid_only: bool = False) -> list[tuple]:
     """Every log and motor under test: each method fitted on one half, judged on the other, both
     ways round; the mean RMS (counts) over the two held-out halves, all samples and relaxed ones."""
     import pandas as pd
@@ -306,12 +345,14 @@ def sts_rows() -> list[tuple]:
         for stand in stands(pd.read_csv(path)):
             halves, relaxed, cfg = sts_halves(path, stand)
             name = f"{path.stem.removeprefix('motor_telemetry_')} (motor {stand.dut})"
+            verdicts: list = []
             methods = (("hwid whole", lambda r: sts_whole(cfg, r, False), "none"),
                        ("hwid whole, from stage 1", lambda r: sts_whole(cfg, r, True), "none"),
+                       ("hwid corrected", lambda r: sts_corrected(cfg, r[0], verdicts), "none"),
                        ("NARX (FROLS)", fit_narx, "degree 3, lags 2"),
                        ("linear OE", lambda r: fit_output_error(r, False), "G order 1-2"),
                        ("nlhw analogue", lambda r: fit_output_error(r, True), "dead zone, h degree 5, G order 1-2"))
-            for method, fit, tuned in methods:
+            for method, fit, tuned in methods[:3] if hwid_only else methods:
                 scores, seconds = [], 0.0
                 for k in (0, 1):
                     t0 = time.perf_counter()
@@ -324,6 +365,8 @@ def sts_rows() -> list[tuple]:
                         tuned = f"failed: {err}"
                         scores.append((float("nan"), float("nan")))
                 rms_all, rms_relaxed = np.mean(scores, axis=0)
+                if method == "hwid corrected" and verdicts:
+                    tuned = f"{tuned}; {_verdicts_note(verdicts)}"
                 rows.append((name, method, rms_all, rms_relaxed, seconds / 2, tuned))
             print(f"  {name}: {halves[0].u.size} + {halves[1].u.size} samples, "
                   f"{int(relaxed[0].sum() + relaxed[1].sum())} relaxed", flush=True)
@@ -372,15 +415,16 @@ def main():
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
           f"numpy {np.__version__}")
     write_it = "--write" in sys.argv[1:]
-    only = set(sys.argv[1:]) - {"--write"}          # plant names, or "sts"; none: all of them
+    hwid_only = "--hwid-only" in sys.argv[1:]
+    only = set(sys.argv[1:]) - {"--write", "--hwid-only"}     # plant names, or "sts"; none: all of them
     rows = []
     for name in PLANTS:
-        if not only or name in only:
+        if (not only or name in only) and not hwid_only:
             rows += run_plant(name)
     sts = []
     if not only or "sts" in only:
         if STS_FOLDER.is_dir():
-            sts = sts_rows()
+            sts = sts_rows(hwid_only)
         else:
             print(f"  STS3215 logs skipped: {STS_FOLDER} is absent")
     if rows:
