@@ -417,6 +417,8 @@ def main():
     write_it = "--write" in sys.argv[1:]
     hwid_only = "--hwid-only" in sys.argv[1:]
     only = set(sys.argv[1:]) - {"--write", "--hwid-only"}     # plant names, or "sts"; none: all of them
+    if write_it and hwid_only:
+        sys.exit("--write needs the peers' columns too: run it without --hwid-only, in .venv-peers")
     rows = []
     for name in PLANTS:
         if (not only or name in only) and not hwid_only:
