@@ -144,6 +144,12 @@ class Effect:
         (:meth:`hwid.diagnose.rank.EffectFitter.fit`). Empty for most effects."""
         return []
 
+    def stands_in(self, intervals: dict | None) -> str | None:
+        """Why the fit, read from its parameters' 95 % intervals (:mod:`hwid.diagnose.intervals`), is
+        not this effect but stands in for something else (a clause for the verdict's ``why``); None
+        where it may be the effect or there are no intervals. Such a fit is never the verdict."""
+        return None
+
     def at_defining_bound(self, theta) -> bool:
         """Whether the fit pressed against a bound that defines the effect (a "lightly damped"
         mode at the largest damping allowed): it then stands in for something else."""

@@ -36,8 +36,11 @@ class Friction(Effect):
     zero with force measured at the contact determine, which a diagnosis from u and y through G
     does not see (Olsson et al. 1998 on its identification). Dahl is LuGre without them.
 
-    ``viscous`` is a zero of G at ``-1/viscous``: with a trusted model, a rate dependence G lacks;
-    with an identified one, its refit G cannot add a zero, so the term is the effect's.
+    ``viscous`` is a zero of G at ``-1/viscous``: a rate dependence, linear. What makes the fit a
+    friction is the Coulomb level, the force that depends on the direction of motion: where its
+    95 % interval holds zero (or it is undetermined) the fit is a zero of G standing in for the
+    model's own dynamics (an identified G a little off takes it up), and it is not named
+    (:meth:`stands_in`).
     """
 
     def __init__(self):
@@ -73,6 +76,19 @@ class Friction(Effect):
         W = sc.v_width
         return grid([f * W for f in (-4.0, -1.0, -0.2, -0.05, -0.01, 0.01, 0.05, 0.2, 1.0, 4.0)],
                     np.geomspace(lo[1], 0.25 * hi[1], 4), [0.0])
+
+    def stands_in(self, intervals: dict | None) -> str | None:
+        """A friction is its Coulomb level: none told from zero, and the fit is a rate dependence."""
+        if not intervals or "coulomb" not in intervals:
+            return None
+        iv = intervals["coulomb"]
+        if iv is None:
+            return ("its Coulomb level is undetermined: what it fits is a rate dependence (its viscous term, a "
+                    "zero of G), not friction")
+        if iv[0] <= 0.0 <= iv[1]:
+            return (f"its Coulomb level's 95 % interval [{iv[0]:.3g}, {iv[1]:.3g}] holds zero: what it fits is a "
+                    "rate dependence (its viscous term, a zero of G), not friction")
+        return None
 
     def drive(self, v, theta, dt: float) -> np.ndarray:
         """G's input: ``v`` with the friction force added."""

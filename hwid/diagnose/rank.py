@@ -22,8 +22,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
-from hwid.diagnose import effects as effect_models
-from hwid.diagnose import search
+from hwid.diagnose import effects as effect_models, search
 from hwid.diagnose.baseline import cancel_slow_pairs, mirror_rhp_zeros, split_modes
 from hwid.diagnose.gap import correlation_time, rms
 from hwid.diagnose.h_refit import HRefit
@@ -421,9 +420,10 @@ class EffectFitter(HRefit):
         if self.refit_g:
             glo, ghi = self._g_bounds()
             lo, hi, logs = np.r_[lo, glo], np.r_[hi, ghi], logs + (False,) * self.n_g
+        step = self.COARSE_STEP if eff.kinked else self.FINE_STEP
         c.intervals = param_intervals(lambda th: self._residual(eff, th), c.theta, lo, hi, logs, eff.params,
-                                      kappa_min=self.kappa / self.stride,
-                                      step=self.COARSE_STEP if eff.kinked else self.FINE_STEP)
+                                      kappa_min=self.kappa / self.stride, step=step)
+        c.stands_in = eff.stands_in(c.intervals)
         return c
 
     @property

@@ -32,6 +32,7 @@ class Candidate:
     stripped: bool = False     # fitted on the baseline with the identified G's outside modes taken out
     own_fitter: object = field(default=None, repr=False, compare=False)   # the fitter of that baseline, if so
     intervals: dict | None = None   # 95 % intervals of ``params`` (:mod:`hwid.diagnose.intervals`)
+    stands_in: str | None = None    # why the fit is not the effect (:meth:`Effect.stands_in`): never the verdict
 
     def to_dict(self) -> dict:
         d = {"effect": self.effect, "params": self.params, "gap_after": self.gap_after,
@@ -42,6 +43,8 @@ class Candidate:
             d["model"] = self.model
         if self.intervals is not None:
             d["intervals"] = self.intervals
+        if self.stands_in is not None:
+            d["stands_in"] = self.stands_in
         return d
 
 
@@ -199,8 +202,11 @@ def eligible(c: Candidate, drift_plausible: bool, threshold: float = 0.5, leaves
     :data:`PARTIAL_MAX_PARAMS` parameters.
 
     ``relevant`` (:class:`Relevance`; ``None``: not asked): whatever else, the effect removes a
-    practically relevant part of the gap (:data:`RELEVANT`)."""
+    practically relevant part of the gap (:data:`RELEVANT`). A fit that stands in for something
+    else (``c.stands_in``, read from its intervals) is never eligible."""
     if c.effect == "drift" and not drift_plausible:
+        return False
+    if c.stands_in is not None:
         return False
     if not c.score > 0:
         return False
