@@ -52,7 +52,7 @@ import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 from scipy import optimize  # noqa: E402
 
-from hwid import config  # noqa: E402
+from hwid import HwidError, config  # noqa: E402
 from hwid.compare import compare_records  # noqa: E402
 from hwid.identify.linear import ExtrapolationWarning, identify_linear  # noqa: E402
 from hwid.identify.nonlinear import identify_nonlinear  # noqa: E402
@@ -193,10 +193,13 @@ def fit_output_error(records, dead_zone: bool):
 def hwid_protocol_records(cfg, truth):
     plant = SimulatedPlant(truth, DT, SIGMA, seed=np.random.SeedSequence(5))
     nl, nl_records = identify_nonlinear(cfg, plant=plant)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ExtrapolationWarning)
-        lin, lin_records = identify_linear(cfg, nl, plant=plant)
-    return list(nl_records) + list(lin_records), model_from_stages(nl, lin)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ExtrapolationWarning)
+            lin, lin_records = identify_linear(cfg, nl, plant=plant)
+    except HwidError as err:       # stage 2 refuses a pre-compensator stage 1 did not identify
+        return list(nl_records), None, " ".join(str(err).split())
+    return list(nl_records) + list(lin_records), model_from_stages(nl, lin), ""
 
 
 def judge(simulate_or_model, validation, sigma: float = SIGMA) -> float:
@@ -215,14 +218,15 @@ def run_plant(name: str) -> list[tuple]:
     validation = validation_records(truth, np.random.default_rng(99))
     rows = [(name, "-", "truth (floor)", judge(truth, validation), 0.0, "nothing")]
     t0 = time.perf_counter()
-    protocol, stages = hwid_protocol_records(cfg, truth)
+    protocol, stages, refused = hwid_protocol_records(cfg, truth)
     t_stages = time.perf_counter() - t0
     rig_seconds = sum(r.u.size for r in protocol) * DT
     peer = [Record("steps", DT, u, truth.simulate(u, DT).x + SIGMA * np.random.default_rng(7).standard_normal(u.size))
             for u in (random_steps(np.random.default_rng(3), 0.7 * rig_seconds),)]
     sweep = chirp(0.3 * rig_seconds, 1.0, 0.02, 1.5)
     peer.append(Record("chirp", DT, sweep, truth.simulate(sweep, DT).x + SIGMA * np.random.default_rng(8).standard_normal(sweep.size)))
-    rows.append((name, "hwid protocol", "hwid stages", judge(stages, validation), t_stages, "none (protocol from the config)"))
+    rows.append((name, "hwid protocol", "hwid stages", judge(stages, validation) if stages is not None else float("nan"),
+                 t_stages, "none (protocol from the config)" if stages is not None else f"refused: {refused[:90]}"))
     from hwid.identify.whole import fit_records
     for design, records, start in (("hwid protocol", fit_records(protocol), stages), ("peer design", peer, None)):
         t0 = time.perf_counter()
