@@ -407,7 +407,7 @@ def write_pages(rows: list[tuple], sts: list[tuple]) -> None:
         sim = [r for r in rows if r[1] != "-"]
         sim += [(p, d, *truth[p][2:]) for p, d in dict.fromkeys((r[0], r[1]) for r in sim) if p in truth]
         md = (f"Held-out free-run RMS / σ (1.0 is the floor); {env}.\n\n"
-              + pivot(sim, 2, lambda r: _number(r[3])))
+              + pivot(sim, 2, lambda r: "refused" if str(r[5]).startswith("refused") else _number(r[3])))
         print(f"wrote {write('peers_simulated', md, 'benchmarks/bench_peers.py')}")
     if sts:
         md = (f"Mean held-out free-run RMS in counts, every sample / pullers relaxed; the encoder's quantum alone "
