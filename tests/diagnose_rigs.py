@@ -8,6 +8,7 @@ plant as an hwid model. ``function(u, dt) -> y`` as ``plant.kind: external`` exp
 """
 from __future__ import annotations
 
+import functools
 import math
 import zlib
 
@@ -552,36 +553,10 @@ def _cubic_rig(name: str, u, dt):
     return w - 0.1 * w ** 3 + r.noise(u.size)
 
 
-def cubic_closing(u, dt):
-    return _cubic_rig("cubic_closing", u, dt)
-
-
-def cubic_opening(u, dt):
-    return _cubic_rig("cubic_opening", u, dt)
-
-
-def cubic_in(u, dt):
-    return _cubic_rig("cubic_in", u, dt)
-
-
-def cubic_in_weak(u, dt):
-    return _cubic_rig("cubic_in_weak", u, dt)
-
-
-def cubic_out(u, dt):
-    return _cubic_rig("cubic_out", u, dt)
-
-
-def cubic_out_weak(u, dt):
-    return _cubic_rig("cubic_out_weak", u, dt)
-
-
-def cubic_in_strong(u, dt):
-    return _cubic_rig("cubic_in_strong", u, dt)
-
-
-def cubic_closing_strong(u, dt):
-    return _cubic_rig("cubic_closing_strong", u, dt)
+# the drivers, one per bend of ``CUBIC`` (``plant.callable: diagnose_rigs:cubic_in``, ...)
+for _name in ("cubic_closing", "cubic_opening", "cubic_in", "cubic_in_weak", "cubic_out", "cubic_out_weak",
+              "cubic_in_strong", "cubic_closing_strong"):
+    globals()[_name] = functools.partial(_cubic_rig, _name)
 
 
 #: the Backlash-Inverse plant with cubic branches (levels -1.5 to 1.5): monotone there while
