@@ -228,10 +228,12 @@ def _round_trip_error(out) -> float:
 @pytest.mark.slow
 def test_an_identified_model_s_corrected_yaml_round_trips(tmp_path):
     """Without ``--model``: F and G as the effect's joint fit left them, h re-estimated with it and
-    written in powers of w, reproduce the after-prediction as well."""
-    cfg = config.load(_write(tmp_path / "rig.yaml", _config(_plant("sensor_lag"))))
+    written in powers of w, reproduce the after-prediction as well. A delay: an identified rational
+    G cannot take it up (a sensor lag it can: stage 2 then fits one more pole, and the verdict is
+    rightly ``none``)."""
+    cfg = config.load(_write(tmp_path / "rig.yaml", _config(_plant("time_delay"))))
     summary = diagnose(cfg, tmp_path / "out", echo=lambda *a: None)
-    assert summary["verdict"]["effect"] == "sensor_lag"
+    assert summary["verdict"]["effect"] == "time_delay"
     assert _round_trip_error(tmp_path / "out") < 1e-9
 
 
