@@ -49,9 +49,9 @@ def main():
     t0 = time.perf_counter()
     fit = WholeModelFit(max_degree=3, structures=[Structure(1, 0)], types=("backlash",))
     fit.problem_ = None
-    from hwid.identify.whole_problem import Problem as _Problem
-    prob = _Problem(records, "backlash", Structure(1, 0), 3, False)
-    theta0 = fit._start(records, "backlash", Structure(1, 0), None)
+    from hwid.identify.whole_problem import Problem
+    prob = Problem(records, "backlash", Structure(1, 0), 3, False)
+    theta0 = fit.start_values(records, "backlash", Structure(1, 0), None)
     from scipy import optimize
     lo, hi = prob.bounds(float(np.ptp(u)), u.size * DT, DT)
     sol = optimize.least_squares(prob.residual, np.clip(theta0, lo + 1e-9, hi - 1e-9), bounds=(lo, hi),
