@@ -291,7 +291,6 @@ def judge_counts(simulate_or_model, record: Record, relaxed: np.ndarray) -> tupl
 def sts_whole(cfg, records, staged: bool) -> HWModel:
     """hwid's whole-model fit as ``hwid run`` does it (``staged``: as ``hwid diagnose`` on logs
     does, the borders started from stage 1 on the records' levels where they hold enough)."""
-    from hwid import HwidError
     from hwid.identify.history import identify_recorded
     from hwid.model import InputNonlinearity
     borders = None

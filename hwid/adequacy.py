@@ -153,17 +153,22 @@ def correlation_time(e: np.ndarray, lags: int = 50) -> float:
     return float(max(tau, 1.0))
 
 
+def _not_outliers(var: np.ndarray, dof: np.ndarray) -> np.ndarray:
+    """Which blocks to keep: those whose variance ``var`` (on ``dof`` degrees of freedom) is not an
+    outlier above the median block's (:data:`OUTLIER_P`); a disturbance, not noise, makes one."""
+    med = float(np.median(var))
+    return (med == 0) | (var <= med * stats.chi2.ppf(1 - OUTLIER_P, dof) / dof)
+
+
 def _pooled(pieces: list[tuple[float, float, float]]) -> tuple[float, float] | None:
     """Pooled variance and its dof from per-block ``(sum of squares, its expectation over sigma^2,
-    dof)``, leaving out blocks whose variance is an outlier above the median block's (:data:`OUTLIER_P`)."""
+    dof)``, leaving out the outlying blocks (:func:`_not_outliers`)."""
     pieces = [p for p in pieces if p[1] > 0 and p[2] > 0]
     if not pieces:
         return None
-    var = np.array([ss / n for ss, n, _ in pieces])
-    med = float(np.median(var))
-    keep = [p for p, v in zip(pieces, var) if med == 0 or v <= med * stats.chi2.ppf(1 - OUTLIER_P, p[2]) / p[2]]
-    ss, n, dof = (sum(p[k] for p in keep) for k in range(3))
-    return (ss / n, float(dof)) if n > 0 else None
+    ss, n, dof = (np.array([p[k] for p in pieces], float) for k in range(3))
+    keep = _not_outliers(ss / n, dof)
+    return (float(ss[keep].sum() / n[keep].sum()), float(dof[keep].sum())) if n[keep].sum() > 0 else None
 
 
 def _detrending(n: int) -> np.ndarray:
@@ -178,12 +183,13 @@ def _lag_sums(r: np.ndarray, lags: int) -> np.ndarray:
     return np.array([float(r[:r.size - k] @ r[k:]) for k in range(lags + 1)])
 
 
-def _moments(blocks: list[np.ndarray], lags: int) -> np.ndarray | None:
-    """The noise's autocovariances ``gamma_0 .. gamma_lags`` from blocks each detrended by its own
-    quadratic, the detrending's bias undone: ``E[sum_t r(t) r(t+k)] = sum_j gamma_j tr(D_k M A_j M)``
-    (``M`` the detrending, ``A_j`` ones on the diagonals ``+-j``, ``D_k`` ones on diagonal ``k``),
-    solved for ``gamma`` with ``gamma_j = 0`` beyond ``lags`` (method of moments). None where the
-    system is singular."""
+def _moments(blocks: list[np.ndarray], lags: int) -> tuple[np.ndarray, np.ndarray]:
+    """The method-of-moments system for the noise's autocovariances ``gamma_0 .. gamma_lags`` from
+    blocks each detrended by its own quadratic: ``sums[k] = sum_t r(t) r(t+k)`` over the blocks and
+    ``design[k, j] = tr(D_k M A_j M)`` summed over them (``M`` the detrending, ``A_j`` ones on the
+    diagonals ``+-j``, ``D_k`` ones on diagonal ``k``), so that ``E[sums] = design @ gamma``. With
+    ``gamma_j = 0`` beyond some ``K <= lags`` the system is its leading ``K + 1`` rows and columns
+    (:func:`_autocovariances`)."""
     sums, design = np.zeros(lags + 1), np.zeros((lags + 1, lags + 1))
     by_size: dict[int, list[np.ndarray]] = {}
     for b in blocks:
@@ -193,50 +199,55 @@ def _moments(blocks: list[np.ndarray], lags: int) -> np.ndarray | None:
         for b in group:
             sums += _lag_sums(m @ b, lags)
         for j in range(lags + 1):
-            a = np.eye(n, k=j) + (np.eye(n, k=-j) if j else 0.0)
-            b_j = m @ a @ m
+            b_j = m @ (np.eye(n, k=j) + (np.eye(n, k=-j) if j else 0.0)) @ m
             design[:, j] += len(group) * np.array([np.trace(b_j, offset=k) for k in range(lags + 1)])
+    return sums, design
+
+
+def _autocovariances(sums: np.ndarray, design: np.ndarray, lags: int) -> np.ndarray | None:
+    """``gamma_0 .. gamma_lags`` of :func:`_moments`' system with ``gamma_j = 0`` beyond ``lags``;
+    None where it is singular or ``gamma_0`` is not positive."""
+    k = lags + 1
     try:
-        return np.linalg.solve(design, sums)
+        gamma = np.linalg.solve(design[:k, :k], sums[:k])
     except np.linalg.LinAlgError:
         return None
+    return gamma if gamma[0] > 0 else None
 
 
 def correlated_floor(blocks: list[np.ndarray], max_lag: int = 20) -> tuple[float, float, float] | None:
     """The noise variance, its degrees of freedom and its correlation time (samples) from blocks of
     noise plus a slow trend: ``(var, dof, kappa)``, or None with too few samples.
 
-    Each block is detrended by its own quadratic; a block whose variance is an outlier above the
-    median block's (:data:`OUTLIER_P`) is left out (a disturbance, not noise). A quadratic fitted to
-    correlated noise takes more of it than its three parameters' share (about ``3 kappa`` samples'
-    worth, not 3: on AR(1) noise with coefficient 0.5 the plain estimate reads the noise 5 % low),
-    so the variance and the autocorrelation are estimated together (:func:`_moments`), the lags
-    summed up to Sokal's window (the smallest ``K >= 5 kappa_K``). ``dof``: the samples left after
-    the trends, over ``kappa``."""
+    Each block is detrended by its own quadratic; an outlying block (:func:`_not_outliers`) is left
+    out. A quadratic fitted to correlated noise takes more of it than its three parameters' share
+    (about ``3 kappa`` samples' worth, not 3: on AR(1) noise with coefficient 0.5 the plain estimate
+    reads the noise 5 % low), so the variance and the autocorrelation are estimated together
+    (:func:`_moments`), the lags summed up to Sokal's window (the smallest ``K >= 5 kappa_K``).
+    ``dof``: the samples left after the trends, over ``kappa``."""
     blocks = [np.asarray(b, float) for b in blocks if np.size(b) >= MIN_BLOCK]
     if not blocks:
         return None
-    plain = [(float(r @ r), b.size - 3.0, b.size - 3.0) for b in blocks for r in [_quadratic_residual(b)]]
-    var = np.array([ss / n for ss, n, _ in plain])
-    med = float(np.median(var))
-    keep = [b for b, p, v in zip(blocks, plain, var)
-            if med == 0 or v <= med * stats.chi2.ppf(1 - OUTLIER_P, p[2]) / p[2]]
+    ss = np.array([float(r @ r) for r in map(_quadratic_residual, blocks)])
+    dof = np.array([b.size - 3.0 for b in blocks])
+    kept = _not_outliers(ss / dof, dof)
+    keep = [b for b, k in zip(blocks, kept) if k]
+    n_free = float(dof[kept].sum())
     lags = int(min(max_lag, min(b.size for b in keep) // 3))
-    gamma = _moments(keep, lags) if lags >= 1 else None
-    n_free = float(sum(b.size - 3 for b in keep))
-    if gamma is None or not gamma[0] > 0:
-        ss = sum(float(r @ r) for r in map(_quadratic_residual, keep))
-        return (ss / n_free, n_free, 1.0) if n_free > 0 else None
+    system = _moments(keep, lags) if lags >= 1 else None
+    gamma = None if system is None else _autocovariances(*system, lags)
+    if gamma is None:
+        return float(ss[kept].sum() / n_free), n_free, 1.0
     rho = gamma[1:] / gamma[0]
-    kappa, window = 1.0, 0
+    kappa, window = 1.0, lags
     for k in range(1, lags + 1):
         kappa, window = 1.0 + 2.0 * float(np.sum(rho[:k])), k
         if k >= 5 * kappa:
             break
     kappa = float(max(kappa, 1.0))
     if window < lags:                               # the covariances within the window only
-        gamma = _moments(keep, window) if window >= 1 else gamma
-        if gamma is None or not gamma[0] > 0:
+        gamma = _autocovariances(*system, window)
+        if gamma is None:
             return None
     return float(gamma[0]), n_free / kappa, kappa
 

@@ -181,6 +181,18 @@ def rate_limit_slow_b(u, dt):
     return _carried_actuator("rate_limit_slow_b", TRUTH["rate_limit_slow"]["rate"], u, dt)
 
 
+def _play(r, lo, hi) -> np.ndarray:
+    """The gear between the borders ``lo`` and ``hi`` (arrays over the samples), from and back into
+    ``r.gear``: the rig's own play, written apart from hwid's."""
+    v = np.empty_like(lo)
+    g = r.gear
+    for i in range(lo.size):
+        g = min(max(g, lo[i]), hi[i])
+        v[i] = g
+    r.gear = g
+    return v
+
+
 def bent_borders(u, dt):
     """Borders bent as S-curves, not any polynomial: the ascending one by
     ``+0.06 tanh(2.5 u) / tanh(2.5)``, the descending one by ``-0.04`` times the same (the play
@@ -189,12 +201,7 @@ def bent_borders(u, dt):
     u = np.asarray(u, float)
     bend = np.tanh(2.5 * u) / np.tanh(2.5)
     lo, hi = u - 0.3 + TRUTH["bent_borders"]["up"] * bend, u + 0.3 + TRUTH["bent_borders"]["down"] * bend
-    v = np.empty_like(u)
-    g = r.gear
-    for i in range(u.size):
-        g = min(max(g, lo[i]), hi[i])
-        v[i] = g
-    r.gear = g
+    v = _play(r, lo, hi)
     num, den = [2.0], [1.0, 3.0, 2.0]
     b, a, _ = signal.cont2discrete((num, den), dt, method="zoh")[:3]
     b = np.ravel(b)
@@ -529,12 +536,7 @@ def _cubic_gear(r: _Rig, u, play: float, bend: tuple):
     else:
         p = 3 if kind == "added" else 2
         lo, hi = (u - play) + ku * u ** p, (u + play) + kd * u ** p
-    v = np.empty_like(u)
-    g = r.gear
-    for i in range(u.size):
-        g = min(max(g, lo[i]), hi[i])
-        v[i] = g
-    r.gear = g
+    v = _play(r, lo, hi)
     return v
 
 

@@ -152,3 +152,21 @@ def test_the_next_experiment_candidates_hold_a_reversal_and_two_amplitudes():
     full = byname["sine at 1x the bandwidth"][1]["sine"]["amplitude"]
     third = byname["sine at 1x the bandwidth, a third of the amplitude"][1]["sine"]["amplitude"]
     assert third == pytest.approx(full / 3)
+
+
+def test_friction_without_a_coulomb_level_is_never_the_verdict():
+    """A friction fit whose Coulomb interval holds zero (or is undetermined) is a rate dependence, a
+    zero of G: it stands in for something else and is not eligible, however much it explains; one
+    whose Coulomb interval excludes zero (the damper's: 3.15 [1.66, 4.64]) is eligible."""
+    from hwid.diagnose.verdict import Candidate, eligible
+    f = Friction()
+    holds_zero = {"coulomb": [-0.022, 0.016], "pre_sliding": None, "viscous": [0.15, 0.21]}
+    undetermined = {"coulomb": None, "pre_sliding": None, "viscous": [0.15, 0.21]}
+    damper = {"coulomb": [1.66, 4.64], "pre_sliding": [0.102, 0.175], "viscous": None}
+    assert "holds zero" in f.stands_in(holds_zero) and "undetermined" in f.stands_in(undetermined)
+    assert f.stands_in(damper) is None and f.stands_in(None) is None
+    assert OutputHysteresis().stands_in(holds_zero) is None       # the rule is friction's own
+    for intervals, named in ((holds_zero, False), (undetermined, False), (damper, True)):
+        c = Candidate("friction", "linear", {}, 0.02, 0.0101, 1.0, 50.0, 3, intervals=intervals,
+                      stands_in=f.stands_in(intervals))
+        assert eligible(c, drift_plausible=False) is named
