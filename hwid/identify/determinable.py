@@ -128,3 +128,56 @@ def interval_flaw(value: float, interval, width: float | None = None, positive: 
         return (f"its 95 % interval [{lo:.4g}, {hi:.4g}] reaches zero or below, where no slope lies: the levels "
                 "do not bound it")
     return None
+
+
+@dataclass(frozen=True)
+class _Step:
+    record: str
+    u: float
+    scored: bool = True
+
+
+#: largest share of samples at which a "stepped" input may change (:func:`stepped_design`)
+STEPPED = 0.05
+
+
+def stepped_design(records) -> Design | None:
+    """The :class:`Design` of the whole fit's records where every input is piecewise constant (it
+    changes at no more than :data:`STEPPED` of its samples), else None.
+
+    A stepped input leaves F's output piecewise constant too, so F is seen only at the values the
+    input holds, settled or not: G's transients between them trace h_bar over a continuum of its
+    argument, but only up to an affine change of that argument, which the ascending branch's slope
+    (``S^a = 1``) and place fix through two distinct held values reached from below, and the
+    descending branch's through two reached from above. So with fewer than 2 on the ascending
+    branch, ``d^+`` and h_bar's scale are undetermined; fewer than 2 on the descending one leave
+    ``S^d`` and ``d^-`` undetermined (:func:`whole_undetermined`). A record's first value has no
+    direction (its gear state is a nuisance parameter). With sines or ramps the input sweeps the
+    borders and this count does not apply."""
+    steps = []
+    for r in records:
+        u = np.asarray(r.u, float)
+        moves = np.flatnonzero(np.diff(u))
+        if u.size < 2 or moves.size > STEPPED * u.size:
+            return None
+        steps += [_Step(r.name, float(x)) for x in u[np.r_[0, moves + 1]]]
+    return design(steps)
+
+
+def whole_undetermined(records, degree: int) -> dict:
+    """``{parameter: reason}`` for the whole fit's F and h_bar (names ``d_plus``, ``slope_down``,
+    ``d_minus``, ``c1`` ... ``c<degree>``) that records of stepped inputs cannot determine
+    (:func:`stepped_design`); empty where the inputs sweep or the steps suffice."""
+    des = stepped_design(records)
+    if des is None:
+        return {}
+    out = {}
+    if len(des.up) < 2:
+        why = (f"the inputs are steps, and {len(des.up)} distinct held value(s) are reached from below "
+               f"({describe(des.up)}); F's ascending branch and h_bar's scale need at least 2")
+        out.update({"d_plus": why, **{f"c{i}": why for i in range(1, degree + 1)}})
+    if len(des.down) < 2:
+        why = (f"the inputs are steps, and {len(des.down)} distinct held value(s) are reached from above "
+               f"({describe(des.down)}); S^d and d- need at least 2")
+        out.update({"slope_down": why, "d_minus": why})
+    return out

@@ -457,8 +457,13 @@ def _said(cfg, fitter, out, echo, t0: float, role: str = "model"):
         from hwid.results import write_whole
         paths["whole"] = write_whole(out / WHOLE, cfg, res, role)
     act = res.actuator
-    echo(f"whole model ({time.perf_counter() - t0:.1f} s): {res.type}, d+ = {res.d_plus:.4g}, d- = {res.d_minus:.4g}, "
-         f"S^d = {res.slope_down:.4g}, h degree {len(res.h_coefficients) - 1}, G {res.structure}"
+
+    def est(name: str, value: float) -> str:
+        return f"{value:.4g}" + (" (undetermined)" if name in res.undetermined else "")
+
+    echo(f"whole model ({time.perf_counter() - t0:.1f} s): {res.type}, d+ = {est('d_plus', res.d_plus)}, "
+         f"d- = {est('d_minus', res.d_minus)}, S^d = {est('slope_down', res.slope_down)}, "
+         f"h degree {len(res.h_coefficients) - 1}, G {res.structure}"
          + (f" with a delay of {res.delay:.4g} s" if res.delay > 0 else "") + f", sigma {res.sigma:.4g}"
          + (f"; the input slews at {act.rate:.4g} units/s" if act is not None and act.rate else "")
          + (f"; the input is clipped to [{act.clip[0]:.4g}, {act.clip[1]:.4g}]"

@@ -297,7 +297,8 @@ class WholeModelFit:
 
 def _undetermined(prob: Problem, theta, ci: dict, f, h) -> tuple[dict, dict]:
     """``ci`` with every interval that cannot stand as one set to None, and ``{parameter: reason}``:
-    not finite or of zero width (:func:`hwid.identify.determinable.interval_flaw`), or the estimate
+    not finite or of zero width (:func:`hwid.identify.determinable.interval_flaw`), not determined by
+    records of stepped inputs (:func:`hwid.identify.determinable.whole_undetermined`), or the estimate
     at the edge of its search range (S^d at 0.05 or 20, the dead band at twice the input's range: the
     records do not bound it; a dead band at its floor is a plant without play, and stays)."""
     span, dt, width = extent(prob.records)
@@ -316,6 +317,8 @@ def _undetermined(prob: Problem, theta, ci: dict, f, h) -> tuple[dict, dict]:
         flaw = determinable.interval_flaw(c, interval) if i else None
         if flaw:
             why[f"c{i}"] = flaw
+    for name, reason in determinable.whole_undetermined(prob.records, len(h) - 1).items():
+        why.setdefault(name, reason)
     if not why:
         return ci, why
     out = {k: (None if k in why else v) for k, v in ci.items()}
