@@ -169,17 +169,21 @@ def shifted(kind: str, slope_down: float, d_plus: float, d_minus: float, coef, b
 
 
 def assess(kind: str, slope_down: float, d_plus: float, d_minus: float, coef, working,
-           admissible=None) -> Verdict:
+           admissible=None, alike=None) -> Verdict:
     """Every root-shifted reading of a fit and the one the paper's assumption picks (module
     docstring). ``coef``: h_bar's ascending coefficients (``coef[0] = 0``); ``working``: ``(lo, hi)``
     of h_bar's argument over the scored data; ``admissible(reading) -> bool``: whether a reading
-    stays within the fit's search range (used only when no root lies in W; default: all)."""
+    stays within the fit's search range (used only when no root lies in W; default: all);
+    ``alike(reading) -> bool``: whether the data fit a reading as well as the fitted one (where the
+    model is not exactly invariant under the shift, e.g. a record starting from a fixed state;
+    default: all are)."""
     lo, hi = widened(working)
     width = float(working[1]) - float(working[0])
     fitted = Reading(0.0, float(d_plus), float(d_minus), float(slope_down), tuple(float(x) for x in coef))
     cands = [fitted if r == 0.0 else shifted(kind, slope_down, d_plus, d_minus, coef, float(r))
              for r in real_roots(coef, width)]
-    cands = [r for r in cands if r.d_plus > r.d_minus or kind != "backlash"]
+    cands = [r for r in cands if (r.d_plus > r.d_minus or kind != "backlash")
+             and (r is fitted or alike is None or alike(r))]
     inside = [r for r in cands if lo <= r.shift <= hi]
     if len(inside) == 1:
         return Verdict(tuple(inside), inside[0], (float(working[0]), float(working[1])))

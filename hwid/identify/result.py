@@ -415,6 +415,11 @@ def stored_interval(v) -> tuple[float, float] | None:
     return None if np.isnan(lo) and np.isnan(hi) else (lo, hi)
 
 
+def point_text(value: float, interval, digits: int = 4) -> str:
+    """``value`` for a one-line echo, or ``undetermined (fitted value)`` where its interval is None."""
+    return f"{value:.{digits}g}" if interval is not None else f"undetermined (fitted {value:.{digits}g})"
+
+
 def interval_text(value: float, interval, digits: int = 6) -> str:
     """``value  [lo, hi]``, or ``undetermined`` where the interval is None."""
     if interval is None:
