@@ -138,16 +138,20 @@ def widened(working) -> tuple[float, float]:
 
 def real_roots(coef, width: float) -> np.ndarray:
     """The real roots of the polynomial with ascending coefficients ``coef`` (a root whose imaginary
-    part is below :data:`IMAG` of ``width`` counts as real, at its real part), sorted; 0 is exact
-    where ``coef[0] == 0``."""
+    part is below :data:`IMAG` of ``width`` counts as real, at its real part; roots closer than that
+    count once), sorted; 0 is exact where ``coef[0] == 0``."""
     c = np.trim_zeros(np.asarray(coef, float), "b")
     if c.size < 2:
         return np.array([0.0])
     zeros = int(np.argmax(c != 0))              # exact roots at 0 (h_bar(0) = 0)
     rest = np.roots(c[zeros:][::-1]) if c.size - zeros > 1 else np.array([])
     tol = IMAG * max(width, 1e-300)
-    real = rest[np.abs(rest.imag) <= tol].real
-    return np.sort(np.concatenate([[0.0] if zeros else [], real]))
+    real = np.sort(rest[np.abs(rest.imag) <= tol].real)
+    out = [0.0] if zeros else []
+    for r in real:          # a multiple root (to within tol) is one shift; 0 stands for those at 0
+        if not any(abs(r - o) <= tol for o in out):
+            out.append(float(r))
+    return np.sort(np.array(out))
 
 
 def shift_h(coef, beta: float) -> np.ndarray:
