@@ -128,3 +128,12 @@ def interval_flaw(value: float, interval, width: float | None = None, positive: 
         return (f"its 95 % interval [{lo:.4g}, {hi:.4g}] reaches zero or below, where no slope lies: the levels "
                 "do not bound it")
     return None
+
+
+def warning_lines(why: dict) -> list[str]:
+    """One ``undetermined ...: reason`` line per distinct reason in ``{parameter: reason}``, naming
+    every parameter that shares it (in their order)."""
+    by_reason: dict = {}
+    for name, reason in why.items():
+        by_reason.setdefault(reason, []).append(name)
+    return [f"undetermined {', '.join(names)}: {reason}" for reason, names in by_reason.items()]

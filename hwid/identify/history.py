@@ -33,6 +33,11 @@ few distinct levels approached from below is a :class:`hwid.HwidError`; h_bar's 
 what the design determines; a parameter the levels cannot determine, an estimate at the edge of its
 search range and a zero-width interval are reported undetermined (interval None, the reason in
 ``undetermined``), and so is the fit's adequacy where no degree of freedom is left to judge it.
+After the fit, h_bar's other real roots are read (:mod:`hwid.identify.readings`): moving the origin
+of h_bar's argument to one of them is an exactly equivalent model of every level, so the paper's
+``h^-1(0) = 0`` on the levels' range picks the reading (the fit moves there, one line), or, where
+several roots lie in that range, the borders, the dead band and h_bar are undetermined and the
+result carries the readings.
 
 Fit: weighted least squares on ``(X_k - h_bar(v_k)) / se_k``; h_bar's coefficients (no constant,
 ``h_bar(0) = 0``) solved for at every step (variable projection); type and degree chosen by the
@@ -437,7 +442,7 @@ def _honest(res: HistoryResult, des, prob: "_Problem", theta, types_tried: bool,
             ci[name] = None
     ci["h_coefficients"] = [None if "h_coefficients" in why or f"c{i}" in why else v
                             for i, v in enumerate(res.ci["h_coefficients"])]
-    warns = list(res.warnings) + [f"undetermined {name}: {reason}" for name, reason in why.items()]
+    warns = list(res.warnings) + determinable.warning_lines(why)
     return replace(res, ci=ci, warnings=tuple(warns), undetermined=dict(why))
 
 

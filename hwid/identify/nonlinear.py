@@ -56,7 +56,8 @@ What the staircases can determine is counted before the fit, as for a recorded h
 (:mod:`hwid.identify.determinable`): fewer than 2 distinct levels on a branch is one line naming the
 parameters and the levels that would determine them. After it, an estimate whose interval cannot
 stand as one (not finite, of zero width, a border's wider than the levels' whole range, a slope's
-reaching zero) is reported undetermined (:func:`undetermined`): interval None and the reason.
+reaching zero) is reported undetermined (:func:`undetermined`): interval None and the reason; so
+are the borders and h_bar where h_bar's root-shifted readings leave them open (:func:`_anchored`).
 ``slope_up`` and h_bar's constant are fixed by the normalisation: no interval.
 """
 from __future__ import annotations
@@ -642,7 +643,7 @@ def unread(res: NonlinearResult, verdict) -> NonlinearResult:
     why = {k: v for k, v in verdict.undetermined().items() if k != "dead_band"}
     params = np.concatenate([res.h_coefficients[1:], [res.d_plus, res.slope_down, res.d_minus]])
     ci = {**res.ci, "d_plus": None, "d_minus": None, "h_coefficients": [None] * len(res.ci["h_coefficients"])}
-    warns = tuple(dict.fromkeys(list(res.warnings) + [f"undetermined {k}: {v}" for k, v in why.items()]))
+    warns = tuple(dict.fromkeys(list(res.warnings) + determinable.warning_lines(why)))
     return replace(res, ci=ci, warnings=warns, undetermined={**res.undetermined, **why},
                    readings=tuple(verdict.to_dicts(res.type, params, res.cov,
                                                    float(res.fit.get("t_quantile", 1.959963984540054)))))

@@ -251,7 +251,7 @@ class WholeModelFit:
         if not verdict.determined:
             why.update({k: v for k, v in verdict.undetermined().items() if k != "dead_band"})
             ci.update(d_plus=None, d_minus=None, h_coefficients=[None] * len(ci["h_coefficients"]))
-        warnings += [f"undetermined {name}: {reason}" for name, reason in why.items()]
+        warnings += determinable.warning_lines(why)
         if prob.degree == self.max_degree:
             warnings.append(f"h_bar's degree is the highest tried ({self.max_degree}); a higher one may fit better")
         init = {rec.name: {"gear": gear, "rest": rest} for rec, (gear, rest) in zip(prob.records, states)}
