@@ -241,7 +241,7 @@ class WholeModelFit:
         verdict = verdict or anchored(prob, theta)[1]
         f, g, states = prob.unpack(theta)
         h = prob.h(theta)
-        ci, s2, r, warnings = self._intervals(prob, theta, h)
+        ci, s2, r, warnings, cov = self._intervals(prob, theta, h)
         if richer is not None:
             richer = (richer[0], anchored(*richer)[0])
             wider, *_ = self._intervals(*richer, richer[0].h(richer[1]))
@@ -262,12 +262,14 @@ class WholeModelFit:
         return WholeResult(f.type, f.slope_down, f.d_plus, f.d_minus, tuple(float(c) for c in h),
                            g.num, g.den, g.delay, str(prob.structure), ci, float(np.sqrt(s2)),
                            float(np.sqrt(np.mean(r * r))), int(r.size), init, tuple(table), tuple(warnings), act,
-                           undetermined=why, readings=tuple(verdict.to_dicts()))
+                           undetermined=why, readings=tuple(verdict.to_dicts(
+                               f.type, np.r_[h[1:], f.d_plus, f.slope_down, f.d_minus], cov)))
 
     @staticmethod
-    def _intervals(prob: Problem, theta, h) -> tuple[dict, float, np.ndarray, list]:
+    def _intervals(prob: Problem, theta, h) -> tuple[dict, float, np.ndarray, list, np.ndarray]:
         """95 % intervals of the borders, the slope and h_bar's coefficients ``h`` of the fit
-        ``theta`` of ``prob``; with the residual variance, the residual and the warnings they raise."""
+        ``theta`` of ``prob``; with the residual variance, the residual, the warnings they raise and
+        the covariance of ``(c_1..c_p, d^+, S^d, d^-)`` (for :mod:`hwid.identify.readings`)."""
         full = np.concatenate([theta, h[1:]])
         r = prob.full_residual(full)
         n, k = r.size, full.size
@@ -301,7 +303,11 @@ class WholeModelFit:
             ci[name] = (value - z * sd, value + z * sd)
         sd_h = np.sqrt(np.clip(np.diag(cov)[prob.n_outer:], 0, None))
         ci["h_coefficients"] = [None] + [(float(c - z * s), float(c + z * s)) for c, s in zip(h[1:], sd_h)]
-        return ci, s2, r, warnings
+        p = h.size - 1
+        T = np.zeros((p + 3, full.size))
+        T[np.arange(p), prob.n_outer + np.arange(p)] = 1.0
+        T[p:] = [grads["d_plus"][1], grads["slope_down"][1], grads["d_minus"][1]]
+        return ci, s2, r, warnings, T @ cov @ T.T
 
 
 
