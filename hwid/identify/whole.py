@@ -243,7 +243,7 @@ class WholeModelFit:
         h = prob.h(theta)
         ci, s2, r, warnings, cov = self._intervals(prob, theta, h)
         if richer is not None:
-            richer = (richer[0], anchored(*richer)[0])
+            richer = (richer[0], _same_reading(*richer, f.d_plus))
             wider, *_ = self._intervals(*richer, richer[0].h(richer[1]))
             for name in ("d_plus", "d_minus", "slope_down"):
                 ci[name] = (min(ci[name][0], wider[name][0]), max(ci[name][1], wider[name][1]))
@@ -453,6 +453,15 @@ def anchored(prob: Problem, theta):
     if not verdict.shifted:
         return theta, verdict, None
     return _moved(prob, theta, verdict.chosen.shift), verdict, verdict.note(f.d_plus)
+
+
+def _same_reading(prob: Problem, theta, d_plus: float) -> np.ndarray:
+    """``theta`` moved to its reading (:func:`anchored`), or where that leaves several, to the one
+    whose d+ is nearest ``d_plus``: the richer fit's intervals join the selected fit's in one reading."""
+    moved, verdict, _ = anchored(prob, theta)
+    if verdict.determined:
+        return moved
+    return _moved(prob, theta, min(verdict.readings, key=lambda r: abs(r.d_plus - d_plus)).shift)
 
 
 def _origins(prob: Problem, theta) -> list[float]:
