@@ -181,3 +181,12 @@ def whole_undetermined(records, degree: int) -> dict:
                f"({describe(des.down)}); S^d and d- need at least 2")
         out.update({"slope_down": why, "d_minus": why})
     return out
+
+
+def warning_lines(why: dict) -> list[str]:
+    """One ``undetermined ...: reason`` line per distinct reason in ``{parameter: reason}``, naming
+    every parameter that shares it (in their order)."""
+    by_reason: dict = {}
+    for name, reason in why.items():
+        by_reason.setdefault(reason, []).append(name)
+    return [f"undetermined {', '.join(names)}: {reason}" for reason, names in by_reason.items()]

@@ -33,6 +33,11 @@ few distinct levels approached from below is a :class:`hwid.HwidError`; h_bar's 
 what the design determines; a parameter the levels cannot determine, an estimate at the edge of its
 search range and a zero-width interval are reported undetermined (interval None, the reason in
 ``undetermined``), and so is the fit's adequacy where no degree of freedom is left to judge it.
+After the fit, h_bar's other real roots are read (:mod:`hwid.identify.readings`): moving the origin
+of h_bar's argument to one of them is an exactly equivalent model of every level, so the paper's
+``h^-1(0) = 0`` on the levels' range picks the reading (the fit moves there, one line), or, where
+several roots lie in that range, the borders, the dead band and h_bar are undetermined and the
+result carries the readings.
 
 Fit: weighted least squares on ``(X_k - h_bar(v_k)) / se_k``; h_bar's coefficients (no constant,
 ``h_bar(0) = 0``) solved for at every step (variable projection); type and degree chosen by the
@@ -52,7 +57,7 @@ import numpy as np
 from scipy import optimize, special
 
 from hwid import HwidError
-from hwid.identify import determinable, disturbed
+from hwid.identify import determinable, disturbed, readings
 from hwid.identify.joint_fit import numeric_jacobian
 from hwid.identify.result import HistoryResult, Level
 from hwid.identify.steady import steady_levels
@@ -320,9 +325,10 @@ class HistoryFit:
             raise HwidError(f"stage 1 from a recorded history: {len(levels)} settled levels cannot determine "
                             "F and h (more levels, at more inputs, are needed)")
         _, prob, theta = best
-        self.problem_, self.theta_, self.design_ = prob, theta, des
-        res = self._result(prob, theta, tuple(table), list(warnings))
-        self.result_ = _honest(res, des, prob, theta, len(self.types) > 1)
+        theta, verdict, note = _anchored(prob, theta, width)
+        self.problem_, self.theta_, self.design_, self.verdict_ = prob, theta, des, verdict
+        res = self._result(prob, theta, tuple(table), list(warnings) + ([note] if note else []))
+        self.result_ = _honest(res, des, prob, theta, len(self.types) > 1, verdict)
         return self
 
     @staticmethod
@@ -372,12 +378,43 @@ class HistoryFit:
                              table, tuple(warns), tuple(tuple(float(x) for x in row) for row in cov_out), names)
 
 
-def _honest(res: HistoryResult, des, prob: "_Problem", theta, types_tried: bool) -> HistoryResult:
-    """``res`` with every parameter the levels cannot determine (:mod:`hwid.identify.determinable`),
-    every interval of zero width or not finite (:func:`~hwid.identify.determinable.interval_flaw`) and
-    every estimate at the edge of its search range reported as undetermined: interval None and the
-    reason, one warning line each."""
+def _anchored(prob: "_Problem", theta, width: float):
+    """``(theta, verdict, note)``: the fit moved to the reading the paper's assumption ``h^-1(0) = 0``
+    picks among h_bar's root-shifted readings (:func:`hwid.identify.readings.assess`, the working
+    range the hull of the fitted ``v`` of the scored levels; a move is exact: the gear's place in
+    the play is a share of the band between the borders, which move together), and the warning
+    line of a move (None without one)."""
+    v = prob.v(theta)
+    coef = np.concatenate([[0.0], prob.h(theta)])
+    lo, hi = prob.bounds(width)
+    sd, dp = float(np.exp(theta[1])), float(theta[0])
+
+    def admissible(r):
+        return (lo[0] <= r.d_plus <= hi[0] and r.dead_band > 0
+                and lo[2] <= np.log(r.dead_band) <= hi[2])
+
+    verdict = readings.assess(prob.type, sd, dp, dp - float(np.exp(theta[2])), coef,
+                              (float(v.min()), float(v.max())), admissible)
+    if not verdict.shifted:
+        return theta, verdict, None
+    moved = np.array(theta, float)
+    moved[0], moved[2] = verdict.chosen.d_plus, np.log(verdict.chosen.dead_band)
+    return moved, verdict, verdict.note(dp)
+
+
+def _honest(res: HistoryResult, des, prob: "_Problem", theta, types_tried: bool,
+            verdict: "readings.Verdict | None" = None) -> HistoryResult:
+    """``res`` with every parameter the levels cannot determine (:mod:`hwid.identify.determinable`;
+    the borders and h_bar also where h_bar's root-shifted readings leave them open,
+    :mod:`hwid.identify.readings`), every interval of zero width or not finite
+    (:func:`~hwid.identify.determinable.interval_flaw`) and every estimate at the edge of its search
+    range reported as undetermined: interval None and the reason, one warning line each."""
     why = des.undetermined(prob.degree)
+    if verdict is not None and not verdict.determined:
+        params = [*res.h_coefficients[1:], res.d_plus, res.slope_down, res.d_minus]
+        res = replace(res, readings=tuple(verdict.to_dicts(prob.type, params, np.asarray(res.cov, float))))
+        for name, reason in verdict.undetermined(res.ci["dead_band"]).items():
+            why.setdefault(name, reason)
     lo, hi = prob.bounds(float(np.ptp([lv.u for lv in prob.levels if lv.scored])) or 1.0)
     edge = {"d_plus": 0, "slope_down": 1, "dead_band": 2}
     for name, i in edge.items():
@@ -405,7 +442,7 @@ def _honest(res: HistoryResult, des, prob: "_Problem", theta, types_tried: bool)
             ci[name] = None
     ci["h_coefficients"] = [None if "h_coefficients" in why or f"c{i}" in why else v
                             for i, v in enumerate(res.ci["h_coefficients"])]
-    warns = list(res.warnings) + [f"undetermined {name}: {reason}" for name, reason in why.items()]
+    warns = list(res.warnings) + determinable.warning_lines(why)
     return replace(res, ci=ci, warnings=tuple(warns), undetermined=dict(why))
 
 

@@ -56,7 +56,8 @@ What the staircases can determine is counted before the fit, as for a recorded h
 (:mod:`hwid.identify.determinable`): fewer than 2 distinct levels on a branch is one line naming the
 parameters and the levels that would determine them. After it, an estimate whose interval cannot
 stand as one (not finite, of zero width, a border's wider than the levels' whole range, a slope's
-reaching zero) is reported undetermined (:func:`undetermined`): interval None and the reason.
+reaching zero) is reported undetermined (:func:`undetermined`): interval None and the reason; so
+are the borders and h_bar where h_bar's root-shifted readings leave them open (:func:`_anchored`).
 ``slope_up`` and h_bar's constant are fixed by the normalisation: no interval.
 """
 from __future__ import annotations
@@ -70,7 +71,7 @@ import numpy as np
 from scipy import special
 
 from hwid import HwidError
-from hwid.identify import determinable
+from hwid.identify import determinable, readings
 from hwid.identify.closed_form import Route, TooFewLevels, flat_run, paper_route, route_with_paths, weighted_polyfit
 from hwid.identify.joint_fit import grid_starts, grid_V, nls_cov, nls_fit, one_degree_up, overdispersion
 from hwid.identify.result import Level, NonlinearResult
@@ -200,10 +201,10 @@ class NonlinearEstimator:
         best = min((c for c in pool if c.kind == kind), key=lambda c: c.bic)
         self._warn_on_degree(best, pool, pmax_up, n_up - j_a, warns)
         cov, chi2, dof, gof_p = self._covariance(kind, best, data, warns)
+        theta, cov, verdict = _anchored(kind, best.theta, cov, data, warns)
         evidence = self._evidence(kind, per_kind, j_a, z_up, data.X.size, data.X[:n_up], data.se[:n_up])
         self._warn_on_type(kind, per_kind, warns)
         flat_up, flat_down = self._reported_paths(kind, best, data, j_a, j_d, warns)
-        theta = best.theta
         V = internal_levels(kind, theta[-3], theta[-2], theta[-1], data)
         st = self.steady_
         self.result_ = self._result(kind, best.p, theta, cov, data, st, flat_up, flat_down, V, evidence, warns,
@@ -219,7 +220,7 @@ class NonlinearEstimator:
                                                     "other_zeros": c.other_zeros}
                                                    for c in table]})
         width = float(np.ptp(np.concatenate([up_staircase.all_levels, down_staircase.all_levels])))
-        self.result_ = undetermined(self.result_, width)
+        self.result_ = unread(undetermined(self.result_, width), verdict)
         r = self.result_
         self.type_, self.degree_ = r.type, r.degree
         self.d_plus_, self.slope_down_, self.d_minus_ = r.d_plus, r.slope_down, r.d_minus
@@ -601,6 +602,51 @@ def undetermined(res: NonlinearResult, width: float) -> NonlinearResult:
     ci["h_coefficients"] = [None if f"c{i}" in why else v for i, v in enumerate(res.ci["h_coefficients"])]
     warns = tuple(dict.fromkeys(list(res.warnings) + [f"undetermined {k}: {v}" for k, v in why.items()]))
     return replace(res, ci=ci, warnings=warns, undetermined={**res.undetermined, **why})
+
+
+def _anchored(kind: str, theta, cov, data: LevelData, warns: list):
+    """``(theta, cov, verdict)``: the fit moved to the reading the paper's assumption ``h^-1(0) = 0``
+    picks among h_bar's root-shifted readings (:func:`hwid.identify.readings.assess`, on the range
+    of the levels' ``V_j`` after the lead-ins), its covariance carried along
+    (:func:`hwid.identify.readings.transform`); one warning line for a move.
+
+    The staircases' model starts F below every border (:data:`hwid.model.BELOW_BORDERS`) and lets
+    the lead-in place it, so every level's ``V_j`` follows the borders: a shift to another root of
+    h_bar is exactly equivalent (the plant's own start at rest anchors nothing, since the lead-in's
+    first level wipes it out); a reading whose chi-square is more than 3.84 above (it is not, for
+    an exact shift) is not a rival."""
+    V = internal_levels(kind, theta[-3], theta[-2], theta[-1], data)
+    U = data.U
+    width = float(np.ptp(U)) or 1.0
+    chi2 = joint_chi2(kind, theta, data)
+
+    def params(r):
+        return np.concatenate([r.h_coefficients[1:], [r.d_plus, r.slope_down, r.d_minus]])
+
+    verdict = readings.assess(
+        kind, theta[-2], theta[-3], theta[-1], np.concatenate([[0.0], theta[:-3]]), (float(V.min()), float(V.max())),
+        admissible=lambda r: all(U.min() - width <= d <= U.max() + width for d in (r.d_plus, r.d_minus)),
+        alike=lambda r: joint_chi2(kind, params(r), data) <= chi2 + special.chdtri(1, 0.05))
+    if not verdict.shifted:
+        return theta, cov, verdict
+    warns.append(verdict.note(float(theta[-3])))
+    moved, cov = readings.transform(kind, theta, cov, verdict.chosen.shift)
+    return moved, cov, verdict
+
+
+def unread(res: NonlinearResult, verdict) -> NonlinearResult:
+    """``res`` with the borders and h_bar undetermined where h_bar's root-shifted readings leave them
+    open (:meth:`hwid.identify.readings.Verdict.undetermined`), the readings with their intervals in
+    ``readings``; unchanged where the reading is determined."""
+    if verdict.determined:
+        return res
+    why = {k: v for k, v in verdict.undetermined().items() if k != "dead_band"}
+    params = np.concatenate([res.h_coefficients[1:], [res.d_plus, res.slope_down, res.d_minus]])
+    ci = {**res.ci, "d_plus": None, "d_minus": None, "h_coefficients": [None] * len(res.ci["h_coefficients"])}
+    warns = tuple(dict.fromkeys(list(res.warnings) + determinable.warning_lines(why)))
+    return replace(res, ci=ci, warnings=warns, undetermined={**res.undetermined, **why},
+                   readings=tuple(verdict.to_dicts(res.type, params, res.cov,
+                                                   float(res.fit.get("t_quantile", 1.959963984540054)))))
 
 
 # ------------------------------------------------------------------------------------ run

@@ -37,6 +37,7 @@ import numpy as np
 
 from hwid import HwidError
 from hwid.identify.defaults import RAIL_SHRINK, RAIL_TRIES
+from hwid.identify.result import point_text
 from hwid.model import Actuator, HWModel
 from hwid.rundir import HISTORY, LINEAR, NONLINEAR, RIG_JOURNAL, WHOLE
 
@@ -226,8 +227,10 @@ def _stage1_staircases(cfg, plant, data, out: Path | None, echo) -> StageOne:
     if out is not None:
         from hwid.results import write_nonlinear
         paths["nonlinear"] = write_nonlinear(out / NONLINEAR, cfg, nonlinear, records)
-    echo(f"stage 1: {nonlinear.type}, d+ = {nonlinear.d_plus:.4f}, S^d = {nonlinear.slope_down:.4f}, "
-         f"d- = {nonlinear.d_minus:.4f}, degree {nonlinear.degree} ({time.perf_counter() - t0:.1f} s)")
+    ci = nonlinear.ci
+    echo(f"stage 1: {nonlinear.type}, d+ = {point_text(nonlinear.d_plus, ci['d_plus'])}, S^d = "
+         f"{point_text(nonlinear.slope_down, ci['slope_down'])}, d- = {point_text(nonlinear.d_minus, ci['d_minus'])}, "
+         f"degree {nonlinear.degree} ({time.perf_counter() - t0:.1f} s)")
     return StageOne(nonlinear, tuple(records), tuple(notes), paths)
 
 
@@ -243,7 +246,8 @@ def _stage1_levels(cfg, records, out: Path | None, echo) -> StageOne:
         from hwid.results import write_history
         paths["history"] = write_history(out / HISTORY, cfg, hist)
     band = hist.ci.get("dead_band")      # None where the levels cannot determine it
-    echo(f"stage 1 from the levels: {hist.type}, d+ = {hist.d_plus:.4g}, d- = {hist.d_minus:.4g}, dead band "
+    echo(f"stage 1 from the levels: {hist.type}, d+ = {point_text(hist.d_plus, hist.ci['d_plus'])}, "
+         f"d- = {point_text(hist.d_minus, hist.ci['d_minus'])}, dead band "
          + (f"{hist.dead_band:.4g} [{band[0]:.4g}, {band[1]:.4g}]" if band is not None else
             f"undetermined (fitted {hist.dead_band:.4g}, not a measurement)")
          + f", S^d = {hist.slope_down:.4g}{' (MISFIT)' if hist.misfit else ''}")
@@ -457,12 +461,9 @@ def _said(cfg, fitter, out, echo, t0: float, role: str = "model"):
         from hwid.results import write_whole
         paths["whole"] = write_whole(out / WHOLE, cfg, res, role)
     act = res.actuator
-
-    def est(name: str, value: float) -> str:
-        return f"{value:.4g}" + (" (undetermined)" if name in res.undetermined else "")
-
-    echo(f"whole model ({time.perf_counter() - t0:.1f} s): {res.type}, d+ = {est('d_plus', res.d_plus)}, "
-         f"d- = {est('d_minus', res.d_minus)}, S^d = {est('slope_down', res.slope_down)}, "
+    echo(f"whole model ({time.perf_counter() - t0:.1f} s): {res.type}, d+ = {point_text(res.d_plus, res.ci['d_plus'])}, "
+         f"d- = {point_text(res.d_minus, res.ci['d_minus'])}, "
+         f"S^d = {point_text(res.slope_down, res.ci['slope_down'])}, "
          f"h degree {len(res.h_coefficients) - 1}, G {res.structure}"
          + (f" with a delay of {res.delay:.4g} s" if res.delay > 0 else "") + f", sigma {res.sigma:.4g}"
          + (f"; the input slews at {act.rate:.4g} units/s" if act is not None and act.rate else "")
@@ -572,7 +573,8 @@ def _whole_on_records(cfg, pieces, echo):
             # levels the stage-1 model does not reach say little about F's type: a non-invertible
             # h_bar read from few levels gave a Backlash-Inverse of zero play for a plain Backlash
             borders, how = None, "stage 1 from its levels is a misfit: both types tried from a grid of borders"
-        echo(f"stage 1 from the fit part's levels: {hist.type}, d+ = {hist.d_plus:.4g}, d- = {hist.d_minus:.4g}, "
+        echo(f"stage 1 from the fit part's levels: {hist.type}, d+ = {point_text(hist.d_plus, hist.ci['d_plus'])}, "
+             f"d- = {point_text(hist.d_minus, hist.ci['d_minus'])}, "
              f"S^d = {hist.slope_down:.4g}" + (" (misfit: not used)" if hist.misfit else ": the borders' start"))
     # G's pure delay fitted by name as well (a rational G alone stands in for a delay with fast
     # poles the plant does not have, and then no excess phase is left for time_delay to name),

@@ -53,6 +53,9 @@ class NonlinearResult:
     fit: dict = field(default_factory=dict)   # diagnostics: chi2, dof, n_up, selection table, ...
     # {parameter: reason} for what the staircases cannot determine; its interval in ``ci`` is None
     undetermined: dict = field(default_factory=dict)
+    # h_bar's root-shifted readings the levels cannot tell apart (:mod:`hwid.identify.readings`),
+    # as plain dicts; empty when the reading is determined
+    readings: tuple = field(default=())
 
     def input_nonlinearity(self) -> InputNonlinearity:
         """The normalised ``F_bar`` (eq. 4a) as an :class:`hwid.model.InputNonlinearity`."""
@@ -77,7 +80,7 @@ class NonlinearResult:
         d.update({"evidence": self.evidence, "warnings": list(self.warnings), "method": self.method,
                   "w_range": list(self.w_range), "param_names": list(self.param_names),
                   "cov": np.asarray(self.cov).tolist(), "fixed": dict(FIXED),
-                  "undetermined": dict(self.undetermined)})
+                  "undetermined": dict(self.undetermined), "readings": [dict(r) for r in self.readings]})
         d["fit"] = {k: v for k, v in self.fit.items()}
         return d
 
@@ -105,7 +108,7 @@ class NonlinearResult:
                    X_hat=tup(d["X_hat"]), X_hat_se=tup(d["X_hat_se"]), flat_up=int(d["flat_up"]),
                    flat_down=int(d["flat_down"]), method=str(d["method"]), evidence=str(d["evidence"]),
                    warnings=tuple(str(w) for w in (d.get("warnings") or [])), fit=dict(d.get("fit") or {}),
-                   undetermined=undetermined)
+                   undetermined=undetermined, readings=stored_readings(d.get("readings")))
 
 
 @dataclass(frozen=True)
@@ -196,6 +199,8 @@ class WholeResult:
     actuator: Actuator | None = None
     # {parameter: reason} for what the records cannot determine; its interval in ``ci`` is None
     undetermined: dict = field(default_factory=dict)
+    # h_bar's root-shifted readings the records cannot tell apart (:mod:`hwid.identify.readings`)
+    readings: tuple = field(default=())
 
     def model(self) -> HWModel:
         """The model that was fitted: F, G (with its delay), h_bar and the actuator ahead of F."""
@@ -214,7 +219,8 @@ class WholeResult:
                 "sigma": self.sigma, "rms": self.rms, "samples": self.samples,
                 "initial_states": self.initial_states, "selection": list(self.selection),
                 "warnings": list(self.warnings),
-                "actuator": None if self.actuator is None else self.actuator.to_dict()}
+                "actuator": None if self.actuator is None else self.actuator.to_dict(),
+                "readings": [dict(r) for r in self.readings]}
 
     @classmethod
     def from_dict(cls, d: dict) -> "WholeResult":
@@ -225,7 +231,8 @@ class WholeResult:
                    tuple(d["h_coefficients"]), tuple(d["num"]), tuple(d["den"]), float(d["delay"]),
                    str(d["structure"]), ci, float(d["sigma"]), float(d["rms"]), int(d["samples"]),
                    dict(d["initial_states"]), tuple(d["selection"]), tuple(d.get("warnings", ())),
-                   Actuator.from_dict(d.get("actuator")), dict(d.get("undetermined") or {}))
+                   Actuator.from_dict(d.get("actuator")), dict(d.get("undetermined") or {}),
+                   stored_readings(d.get("readings")))
 
 
 def first_order_fallback(lin: LinearResult) -> tuple[list, list]:
@@ -290,6 +297,9 @@ def format_summary(result: NonlinearResult) -> str:
             lines.append(f"    c{i} = {interval_text(c, ci)}")
     for name, why in result.undetermined.items():
         lines.append(f"  undetermined {name}: {why}")
+    line = readings_line(result.readings)
+    if line:
+        lines.append(line)
     if result.type == "backlash":
         lines.append(f"  horizontal paths: j_a = {result.flat_up}, j_d = {result.flat_down}")
     else:
@@ -343,6 +353,8 @@ class HistoryResult:
     # {parameter (or "type", "adequacy"): reason} for what the levels cannot determine; such a
     # parameter's interval in ``ci`` is None (:mod:`hwid.identify.determinable`)
     undetermined: dict = field(default_factory=dict)
+    # h_bar's root-shifted readings the levels cannot tell apart (:mod:`hwid.identify.readings`)
+    readings: tuple = field(default=())
 
     @property
     def dead_band(self) -> float:
@@ -357,7 +369,8 @@ class HistoryResult:
                 "p_value": self.p_value, "misfit": self.misfit,
                 "levels": [vars(lv) for lv in self.levels], "selection": list(self.table),
                 "warnings": list(self.warnings), "cov": [list(row) for row in self.cov],
-                "param_names": list(self.param_names), "fixed": dict(FIXED), "undetermined": dict(self.undetermined)}
+                "param_names": list(self.param_names), "fixed": dict(FIXED), "undetermined": dict(self.undetermined),
+                "readings": [dict(r) for r in self.readings]}
 
     @classmethod
     def from_dict(cls, d: dict) -> "HistoryResult":
@@ -367,7 +380,25 @@ class HistoryResult:
                    tuple(d["h_coefficients"]), ci, float(d["chi2"]), int(d["dof"]), float(d["p_value"]),
                    bool(d["misfit"]), tuple(Level(**lv) for lv in d["levels"]), tuple(d["selection"]),
                    tuple(d["warnings"]), tuple(tuple(row) for row in d.get("cov", ())),
-                   tuple(d.get("param_names", ())), dict(d.get("undetermined", {})))
+                   tuple(d.get("param_names", ())), dict(d.get("undetermined", {})),
+                   stored_readings(d.get("readings")))
+
+
+def stored_readings(v) -> tuple:
+    """Root-shifted readings as read back (None or absent in a file written before: none)."""
+    if v is None or isinstance(v, str):
+        return ()
+    return tuple(dict(r) for r in v)
+
+
+def readings_line(readings) -> str | None:
+    """The one summary line of undetermined readings (None when there are none)."""
+    if len(readings) < 2:
+        return None
+    return ("  reading undetermined: h_bar vanishes at " + " and ".join(f"{r['shift']:.4g}" for r in readings)
+            + "; equivalent readings d+ = " + " or ".join(f"{r['d_plus']:.4g}" for r in readings)
+            + ", dead band " + " or ".join(f"{r['dead_band']:.4g}" for r in readings)
+            + " (the paper's h^-1(0) = 0 picks none)")
 
 
 def _interval(v):
@@ -382,6 +413,11 @@ def stored_interval(v) -> tuple[float, float] | None:
         return None
     lo, hi = (float(x) for x in np.ravel(np.asarray(v, float)))
     return None if np.isnan(lo) and np.isnan(hi) else (lo, hi)
+
+
+def point_text(value: float, interval, digits: int = 4) -> str:
+    """``value`` for a one-line echo, or ``undetermined (fitted value)`` where its interval is None."""
+    return f"{value:.{digits}g}" if interval is not None else f"undetermined (fitted {value:.{digits}g})"
 
 
 def interval_text(value: float, interval, digits: int = 6) -> str:
@@ -407,4 +443,5 @@ def format_history(res: HistoryResult) -> str:
              + "".join(f"  ({k} undetermined)" for k in und if k[:1] == "c" and k[1:].isdigit()),
              f"  {sum(lv.scored for lv in res.levels)} levels scored; chi2 = {res.chi2:.4g} on {res.dof} dof "
              f"(p = {res.p_value:.2g})"]
-    return "\n".join(lines)
+    line = readings_line(res.readings)
+    return "\n".join(lines + ([line] if line else []))

@@ -31,7 +31,7 @@ import numpy as np
 from scipy import optimize, special
 
 from hwid import HwidError
-from hwid.identify import determinable
+from hwid.identify import determinable, readings
 from hwid.identify.defaults import MAX_DEGREE, MAX_NFEV
 from hwid.identify.g_structure import STRUCTURES, Structure, g_from_params, g_params_from, structure_of  # noqa: F401
 from hwid.identify.result import WholeResult
@@ -138,8 +138,7 @@ class WholeModelFit:
         if pole is not None:
             prob, theta, rss = pole
             table.append(table_row(prob, rss))
-        self.problem_, self.theta_ = prob, theta
-        self.result_ = self._result(prob, theta, table, solutions.get((prob.type, prob.structure, prob.degree + 1)))
+        self.hold(prob, theta, table, richer=solutions.get((prob.type, prob.structure, prob.degree + 1)))
         return self
 
     def _label(self, structure: Structure) -> str:
@@ -217,14 +216,18 @@ class WholeModelFit:
             out += [0.0, float(np.median(r.u[: max(3, r.u.size // 50)]))]
         return out
 
-    def hold(self, prob: Problem, theta, table, note: str = "") -> None:
+    def hold(self, prob: Problem, theta, table, note: str = "", richer=None) -> None:
         """Make the fit ``theta`` of ``prob`` the selected one (``problem_``, ``theta_``, ``result_``
-        with the selection ``table``); ``note`` joins its warnings (what the model leaves out)."""
+        with the selection ``table``), moved to the reading of h_bar's roots the paper's assumption
+        picks (:func:`anchored`); ``note`` joins its warnings (what the model leaves out);
+        ``richer`` as for :meth:`_result`."""
+        theta, verdict, moved = anchored(prob, theta)
         self.problem_, self.theta_ = prob, theta
-        res = self._result(prob, theta, table)
-        self.result_ = replace(res, warnings=res.warnings + (note,)) if note else res
+        res = self._result(prob, theta, table, richer, verdict)
+        notes = tuple(n for n in (moved, note) if n)
+        self.result_ = replace(res, warnings=res.warnings + notes) if notes else res
 
-    def _result(self, prob: Problem, theta, table, richer=None) -> WholeResult:
+    def _result(self, prob: Problem, theta, table, richer=None, verdict=None) -> WholeResult:
         """The result of the selected fit; ``richer`` is ``(problem, theta)`` of the same type and
         structure with h_bar one degree higher, when it was fitted.
 
@@ -232,16 +235,23 @@ class WholeModelFit:
         fit's: the criterion drops a weak top coefficient of h_bar now and then, the borders of
         a fit with too low a degree are biased and its intervals miss the truth, while the fit
         one degree up holds the truth's model and only widens them (post-selection honesty at
-        the price of slightly wider intervals)."""
+        the price of slightly wider intervals). ``verdict``: the fit's root-shifted readings
+        (:func:`anchored`; found here when not given): where they are several, the borders and
+        h_bar are undetermined and the result carries them."""
+        verdict = verdict or anchored(prob, theta)[1]
         f, g, states = prob.unpack(theta)
         h = prob.h(theta)
-        ci, s2, r, warnings = self._intervals(prob, theta, h)
+        ci, s2, r, warnings, cov = self._intervals(prob, theta, h)
         if richer is not None:
+            richer = (richer[0], _same_reading(*richer, f.d_plus))
             wider, *_ = self._intervals(*richer, richer[0].h(richer[1]))
             for name in ("d_plus", "d_minus", "slope_down"):
                 ci[name] = (min(ci[name][0], wider[name][0]), max(ci[name][1], wider[name][1]))
         ci, why = _undetermined(prob, theta, ci, f, h)
-        warnings += [f"undetermined {name}: {reason}" for name, reason in why.items()]
+        if not verdict.determined:
+            why.update({k: v for k, v in verdict.undetermined().items() if k != "dead_band"})
+            ci.update(d_plus=None, d_minus=None, h_coefficients=[None] * len(ci["h_coefficients"]))
+        warnings += determinable.warning_lines(why)
         if prob.degree == self.max_degree:
             warnings.append(f"h_bar's degree is the highest tried ({self.max_degree}); a higher one may fit better")
         init = {rec.name: {"gear": gear, "rest": rest} for rec, (gear, rest) in zip(prob.records, states)}
@@ -252,12 +262,14 @@ class WholeModelFit:
         return WholeResult(f.type, f.slope_down, f.d_plus, f.d_minus, tuple(float(c) for c in h),
                            g.num, g.den, g.delay, str(prob.structure), ci, float(np.sqrt(s2)),
                            float(np.sqrt(np.mean(r * r))), int(r.size), init, tuple(table), tuple(warnings), act,
-                           undetermined=why)
+                           undetermined=why, readings=tuple(verdict.to_dicts(
+                               f.type, np.r_[h[1:], f.d_plus, f.slope_down, f.d_minus], cov)))
 
     @staticmethod
-    def _intervals(prob: Problem, theta, h) -> tuple[dict, float, np.ndarray, list]:
+    def _intervals(prob: Problem, theta, h) -> tuple[dict, float, np.ndarray, list, np.ndarray]:
         """95 % intervals of the borders, the slope and h_bar's coefficients ``h`` of the fit
-        ``theta`` of ``prob``; with the residual variance, the residual and the warnings they raise."""
+        ``theta`` of ``prob``; with the residual variance, the residual, the warnings they raise and
+        the covariance of ``(c_1..c_p, d^+, S^d, d^-)`` (for :mod:`hwid.identify.readings`)."""
         full = np.concatenate([theta, h[1:]])
         r = prob.full_residual(full)
         n, k = r.size, full.size
@@ -291,7 +303,11 @@ class WholeModelFit:
             ci[name] = (value - z * sd, value + z * sd)
         sd_h = np.sqrt(np.clip(np.diag(cov)[prob.n_outer:], 0, None))
         ci["h_coefficients"] = [None] + [(float(c - z * s), float(c + z * s)) for c, s in zip(h[1:], sd_h)]
-        return ci, s2, r, warnings
+        p = h.size - 1
+        T = np.zeros((p + 3, full.size))
+        T[np.arange(p), prob.n_outer + np.arange(p)] = 1.0
+        T[p:] = [grads["d_plus"][1], grads["slope_down"][1], grads["d_minus"][1]]
+        return ci, s2, r, warnings, T @ cov @ T.T
 
 
 
@@ -405,6 +421,50 @@ class _Search:
             old = before.get(row["degree"])
             if old is not None and old["aic"] < row["aic"]:   # the table keeps what solutions keeps
                 self.table[self.table.index(row)] = old
+
+
+def anchored(prob: Problem, theta):
+    """``(theta, verdict, note)``: the fit ``theta`` moved (:func:`_moved`) to the reading of h_bar's
+    real roots that the paper's assumption ``h^-1(0) = 0`` picks on the range of the fit's ``w``
+    (:func:`hwid.identify.readings.assess`), and the warning line of a move (None without one).
+
+    Each record's G starts at rest at a fitted level and its gear at a share of the band between
+    the borders, and both move with F's output: a shift to another root is exactly equivalent on
+    any records. Still, a reading counts as a rival only where its residual sum of squares is within
+    ``chi2_{1, 0.95} s^2`` of the fit's; with no root in the range, only readings within the search
+    range (the dead band's bounds, d+ within twice the input's range of it)."""
+    w = prob.w(theta)
+    f, _, _ = prob.unpack(theta)
+    r = prob.residual(theta)
+    rss = float(r @ r)
+    s2 = rss / max(r.size - prob.n_outer - prob.degree, 1)
+    span, dt, width = extent(prob.records)
+    lo, hi = prob.bounds(width, span, dt)
+    u = np.concatenate([rec.u for rec in prob.records])
+    bound = special.chdtri(1, 0.05) * s2
+
+    def admissible(rd):
+        return (float(u.min()) - 2 * width <= rd.d_plus <= float(u.max()) + 2 * width and rd.dead_band > 0
+                and lo[2] <= np.log(rd.dead_band) <= hi[2])
+
+    def alike(rd):
+        e = prob.residual(_moved(prob, theta, rd.shift))
+        return float(e @ e) - rss <= bound
+
+    verdict = readings.assess(f.type, f.slope_down, f.d_plus, f.d_minus, prob.h(theta),
+                              (float(w.min()), float(w.max())), admissible, alike)
+    if not verdict.shifted:
+        return theta, verdict, None
+    return _moved(prob, theta, verdict.chosen.shift), verdict, verdict.note(f.d_plus)
+
+
+def _same_reading(prob: Problem, theta, d_plus: float) -> np.ndarray:
+    """``theta`` moved to its reading (:func:`anchored`), or where that leaves several, to the one
+    whose d+ is nearest ``d_plus``: the richer fit's intervals join the selected fit's in one reading."""
+    moved, verdict, _ = anchored(prob, theta)
+    if verdict.determined:
+        return moved
+    return _moved(prob, theta, min(verdict.readings, key=lambda r: abs(r.d_plus - d_plus)).shift)
 
 
 def _origins(prob: Problem, theta) -> list[float]:

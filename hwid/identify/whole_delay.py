@@ -54,8 +54,8 @@ def fit_delay_added(fitter: Estimator, records, borders=None) -> Estimator:
     if pole is not None:
         prob, x, rss = pole
         table.append(table_row(prob, rss))
-    fitter.problem_, fitter.theta_ = prob, x
-    fitter.result_ = delayed._result(prob, x, table)
+    delayed.hold(prob, x, table)
+    fitter.problem_, fitter.theta_, fitter.result_ = delayed.problem_, delayed.theta_, delayed.result_
     return fitter
 
 
