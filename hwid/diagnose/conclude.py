@@ -16,6 +16,7 @@ from hwid.diagnose import confirm, corrected, findings, gap, rank, residual_stru
 from hwid.diagnose.baseline import has_outside_modes
 from hwid.diagnose.context import Context, Validation, sine_band
 from hwid.diagnose.effects import CATALOGUE, catalogue
+from hwid.diagnose.floor_lines import verdict_with_lines
 from hwid.diagnose.log_drift import (drift_from_residual, drift_leaves_little, drift_takes_the_excess,
                                      input_predicts_it, repeats_under_best)
 from hwid.diagnose.model_check import (adequacy_tail, adequacy_where, changed_or_inadequate, describe_misfit,
@@ -208,6 +209,7 @@ def conclude(ctx: Context) -> dict:
                                           or (decision.verdict, decision.why))
     decision.verdict, decision.why = not_none_from_a_misfit(ctx, decision.verdict, decision.why,
                                                              gaps.min_ratio)
+    decision.verdict, decision.why = verdict_with_lines(decision.verdict, decision.why, ctx.floor, ctx.echo)
     return write_result(ctx, gaps, cands, drift_ok, by_effect, decision, on_rails, t0)
 
 

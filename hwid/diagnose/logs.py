@@ -225,7 +225,7 @@ def floor_from_logs(exps, recs, xs, F, design) -> tuple:
                 mask[max(known_from(ua, F, width // 2), 0):] = True
                 pairs.append((a.y[ka:], b.y[kb:], mask))
     if pairs:
-        floor, source = gap.noise_floor(pairs, width, y_scale), "repeats"
+        floor, source = gap.noise_floor(pairs, width, y_scale, design.dt), "repeats"
     else:
         held = holds_floor(exps, recs, xs, design)
         if held is not None:
