@@ -80,7 +80,8 @@ class NoiseFloor:
 
     def to_dict(self) -> dict:
         iv = self.interval()
-        return {**asdict(self), "interval": None if iv is None else list(iv)}
+        return {**asdict(self), "set_aside": [dict(d) for d in self.set_aside],
+                "interval": None if iv is None else list(iv)}
 
 
 @dataclass(frozen=True)
@@ -125,7 +126,7 @@ class Adequacy:
         if not d:
             return None
         fields = {f.name for f in dataclasses.fields(NoiseFloor)}
-        floor = NoiseFloor(**{k: v for k, v in d["floor"].items() if k in fields})
+        floor = NoiseFloor(**{k: tuple(v) if k == "set_aside" else v for k, v in d["floor"].items() if k in fields})
         own = {f.name for f in dataclasses.fields(cls)}
         return cls(**{k: v for k, v in d.items() if k in own and k != "floor"}, floor=floor)
 
@@ -264,13 +265,13 @@ def _start(rec) -> int:
     return int(getattr(rec, "attrs", {}).get("pre", 0) or 0)
 
 
-def _without_lines(pieces, records) -> tuple[list[np.ndarray], tuple]:
+def _without_lines(pieces, records, independent=None) -> tuple[list[np.ndarray], tuple]:
     """``pieces`` with their narrow-band components taken out (:func:`hwid.spectral_lines.find_lines`,
-    at the records' sample time), and those components as dicts."""
+    at the records' sample time, tested on the ``independent`` pieces), and those components as dicts."""
     dt = float(getattr(records[0], "dt", 0.0) or 0.0) if records else 0.0
     if not (pieces and dt > 0):
         return pieces, ()
-    cleaned, lines = spectral_lines.find_lines(pieces, dt)
+    cleaned, lines = spectral_lines.find_lines(pieces, dt, independent=independent)
     return cleaned, tuple(ln.to_dict() for ln in lines)
 
 
@@ -283,17 +284,18 @@ def _lines_note(lines: tuple) -> str:
 def _repeats(records) -> tuple | None:
     """The floor from pairs of records with identical inputs: ``(var, dof, kappa, detail, set
     aside)`` or None."""
-    diffs, pairs = [], 0
+    diffs, pairs, who = [], 0, []
     for i, a in enumerate(records):
         ua = np.asarray(a.u, float)[_start(a):]
-        for b in records[i + 1:]:
+        for j, b in enumerate(records[i + 1:], i + 1):
             ub = np.asarray(b.u, float)[_start(b):]
             if ua.size != ub.size or ua.size < 5 * MIN_BLOCK or not np.array_equal(ua, ub):
                 continue
             d = (np.asarray(a.y, float)[_start(a):] - np.asarray(b.y, float)[_start(b):]) / np.sqrt(2.0)
             diffs.append(d[d.size // 5:])         # the first fifth: the starts may differ
+            who.append((i, j))
             pairs += 1
-    diffs, lines = _without_lines(diffs, records)
+    diffs, lines = _without_lines(diffs, records, spectral_lines.disjoint(who))
     found = correlated_floor([b for d in diffs for b in _blocks(d)])
     if found is None or found[1] < MIN_DOF:
         return None

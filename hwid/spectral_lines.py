@@ -131,30 +131,47 @@ def _refine(pieces, k: int, L: int) -> float:
     return float(max(grid, key=lambda w: _fit(pieces, w)[1]))
 
 
-def find_lines(pieces, dt: float, alpha: float = ALPHA, max_lines: int = MAX_LINES):
+def find_lines(pieces, dt: float, alpha: float = ALPHA, max_lines: int = MAX_LINES, independent=None):
     """The narrow-band components of ``pieces`` (arrays, or ``(sample index, value)`` pairs for
     pieces with gaps) sampled every ``dt`` s, and the pieces with them taken out (module docstring).
+
+    ``independent``: the indices of the pieces whose noise is independent of each other's (the
+    test's null distribution counts them as such; differences of three repeats pairwise share
+    records), default all; a line found on them is taken out of every piece.
 
     Returns ``(cleaned pieces, [Line, ...])``, the cleaned pieces as value arrays in the order
     given; pieces shorter than :data:`MIN_PIECE` samples are returned as they are and take no part.
     Nothing is taken out of noise alone but with probability about ``alpha``."""
     pieces = _as_pieces(pieces)
+    chosen = set(range(len(pieces)) if independent is None else independent)
     use = [i for i, (idx, x) in enumerate(pieces) if x.size >= MIN_PIECE]
+    test = [j for j, i in enumerate(use) if i in chosen]
     values = [x for _, x in pieces]
-    if not use:
+    if not test:
         return values, []
     work = [pieces[i] for i in use]
-    L = 1 << int(np.ceil(np.log2(OVERSAMPLE * max(int(idx[-1]) + 1 for idx, _ in work))))
+    L = 1 << int(np.ceil(np.log2(OVERSAMPLE * max(int(work[j][0][-1]) + 1 for j in test))))
     total = float(sum(np.sum((x - x.mean()) ** 2) for _, x in work))
     lines = []
     while len(lines) < max_lines and total > 0:
-        found = _peak(work, L)
+        found = _peak([work[j] for j in test], L)
         if found is None or found[1] >= alpha:
             break
-        omega_dt = _refine(work, found[0], L)
+        omega_dt = _refine([work[j] for j in test], found[0], L)
         cleaned, taken, amp = _fit(work, omega_dt)
         lines.append(Line(omega_dt / dt, amp, found[1], taken / total))
         work = [(idx, x) for (idx, _), x in zip(work, cleaned)]
     for i, (_, x) in zip(use, work):
         values[i] = x
     return values, lines
+
+
+def disjoint(pairs) -> list[int]:
+    """Indices of a greedy set of ``pairs`` (two keys each) no two of which share a key: pieces that
+    are differences of records, each record in at most one of them, are independent."""
+    used, out = set(), []
+    for i, (a, b) in enumerate(pairs):
+        if a not in used and b not in used:
+            used.update((a, b))
+            out.append(i)
+    return out

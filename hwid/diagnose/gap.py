@@ -129,14 +129,17 @@ def noise_floor(pairs, width: int, y_scale: float, dt: float = 0.0) -> NoiseFloo
 
 def _differences(pairs, dt: float) -> tuple[list[np.ndarray], list]:
     """``d/sqrt(2)`` of each pair on its mask, with its narrow-band components taken out where
-    ``dt`` is given (:func:`hwid.spectral_lines.find_lines`), and those components."""
-    pieces = []
+    ``dt`` is given (:func:`hwid.spectral_lines.find_lines`, tested on pairs that share no record),
+    and those components."""
+    pieces, who = [], []
     for ya, yb, mask in pairs:
         keep = np.asarray(mask, bool)
-        pieces.append((np.flatnonzero(keep), (np.asarray(ya, float) - np.asarray(yb, float))[keep] / np.sqrt(2)))
+        ya, yb = np.asarray(ya, float), np.asarray(yb, float)
+        pieces.append((np.flatnonzero(keep), (ya - yb)[keep] / np.sqrt(2)))
+        who.append((hash(ya.tobytes()), hash(yb.tobytes())))
     if not dt > 0:
         return [d for _, d in pieces], []
-    return spectral_lines.find_lines(pieces, dt)
+    return spectral_lines.find_lines(pieces, dt, independent=spectral_lines.disjoint(who))
 
 
 def noise_floor_from_holds(holds, y_scale: float, repeats=(), block: int = 20, still=None) -> NoiseFloor:
