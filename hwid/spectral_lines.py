@@ -14,11 +14,16 @@ noise's smooth ``S``). ``S`` near ``omega`` is the mean of ``T`` over a window s
 value at its centre, and a convex one (a slow wander's ``1/omega^2``) more, never less. The ratio
 ``T / mean`` is then ``F(2P, 2Q)`` distributed for noise, ``Q`` the independent ordinates in the
 window (Fisher's ``g`` test against a local, not a global, level: the latter rejects on every AR
-spectrum). The smallest p-value, times the number of independent frequencies tested (Bonferroni),
-(:data:`SCALLOP`) is the family's: below :data:`ALPHA` the peak is a line. Its frequency is refined on a fine grid
-and a sinusoid at it (own amplitude and phase per piece: a load at its own frequency meets each
+spectrum). The smallest p-value, times the number of independent frequencies tested (Bonferroni;
+the oversampled grid's largest ordinate counted as :data:`SCALLOP` times as many), is the family's:
+below :data:`ALPHA` the peak is a line. Pieces that share noise (pairwise differences of three
+repeats) are tested on an independent subset (:func:`disjoint`). Its frequency is refined on a fine
+grid and a sinusoid at it (own amplitude and phase per piece: a load at its own frequency meets each
 repeat at another phase) is fitted to every piece by least squares and taken out; the test is run
 again on what is left, up to :data:`MAX_LINES` lines.
+
+A line needs a few Fourier bins of the longest piece below it (the exclusion and the window's low
+side: about 5 cycles over that piece): a load slower than that is not told from a wander here.
 """
 from __future__ import annotations
 

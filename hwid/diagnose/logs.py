@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hwid import HwidError
+from hwid import HwidError, spectral_lines
 from hwid.diagnose import experiments, gap
 from hwid.identify.split import MIN_SCORED
 from hwid.recorded import level_segments
@@ -257,7 +257,7 @@ def holds_floor(exps, recs, xs, design):
     for e, r, x in zip(exps, recs, xs):
         known = x_of.get(id(r), (None, np.zeros(r.u.size, bool)))[1] | e.mask
         x_of[id(r)] = (x, known)
-    holds, tails, keyed = [], [], {}
+    holds, tails, keys = [], [], []
     span = max(float(np.ptp(np.concatenate([x for x, _ in x_of.values()]))), 1e-12)
     for r in distinct:
         if id(r) not in x_of:
@@ -273,10 +273,14 @@ def holds_floor(exps, recs, xs, design):
             tails.append(x[a:b] - x[b - 1])
             # the model's settled output at the hold's end, to a thousandth of its span: the
             # same state of the plant where the model is in the same state
-            key = (round(seg["value"], 9), round(float(x[b - 1]) / span, 3))
-            keyed.setdefault(key, []).append(res)
+            keys.append((round(seg["value"], 9), round(float(x[b - 1]) / span, 3)))
     if not holds:
         return None
+    # a disturbance at a frequency of its own is no noise and no wander: out of every hold first
+    holds, lines = spectral_lines.find_lines(holds, design.dt)
+    keyed = {}
+    for key, res in zip(keys, holds):
+        keyed.setdefault(key, []).append(res)
     repeats = [g for g in keyed.values() if len(g) >= 2]
     # whether the plant wanders at a constant input, where the model is still (within a quarter of
     # the noise of its end): what the plant does while the model still moves is the model's to explain
@@ -285,5 +289,5 @@ def holds_floor(exps, recs, xs, design):
     for res, tail in zip(holds, tails):
         moving = np.flatnonzero(np.abs(tail) > 0.25 * first.sigma)
         still.append(res[int(moving[-1]) + 1 if moving.size else 0:])
-    floor = gap.noise_floor_from_holds(holds, y_scale, repeats, still=still)
+    floor = replace(gap.noise_floor_from_holds(holds, y_scale, repeats, still=still), lines=tuple(lines))
     return floor, sum(len(g) for g in repeats), len(repeats)
