@@ -145,11 +145,12 @@ def find_lines(pieces, dt: float, alpha: float = ALPHA, max_lines: int = MAX_LIN
     records), default all; a line found on them is taken out of every piece.
 
     Returns ``(cleaned pieces, [Line, ...])``, the cleaned pieces as value arrays in the order
-    given; pieces shorter than :data:`MIN_PIECE` samples are returned as they are and take no part.
+    given; pieces shorter than :data:`MIN_PIECE` samples or not finite are returned as they are and
+    take no part.
     Nothing is taken out of noise alone but with probability about ``alpha``."""
     pieces = _as_pieces(pieces)
     chosen = set(range(len(pieces)) if independent is None else independent)
-    use = [i for i, (idx, x) in enumerate(pieces) if x.size >= MIN_PIECE]
+    use = [i for i, (idx, x) in enumerate(pieces) if x.size >= MIN_PIECE and np.all(np.isfinite(x))]
     test = [j for j, i in enumerate(use) if i in chosen]
     values = [x for _, x in pieces]
     if not test:

@@ -143,3 +143,30 @@ def test_periodic_load_is_set_aside_from_the_floor_and_unexplained(periodic_load
     # the model's own check on the validation records uses a floor with the load set aside as well
     assert abs(s["model_adequacy"]["floor"]["sigma"] / R.NOISE - 1) < 0.2
     assert s["model_adequacy"]["floor"]["set_aside"]
+
+
+def _floor_with_line(omega: float, slow_z: float = 0.0) -> gap.NoiseFloor:
+    return gap.NoiseFloor(0.01, 1.0, 1000, 0.001, slow_z, np.zeros(0), (spectral_lines.Line(omega, 0.05, 1e-9, 0.9),))
+
+
+def test_a_line_makes_none_and_other_effects_unexplained_but_not_its_own_mode():
+    """A line in the repeats' differences: ``none`` and a delay become ``unexplained`` (no catalogue
+    effect makes a line at a frequency of its own); a resonance whose omega_n is the line's (a mode
+    still ringing from each repeat's start) keeps its name; one far from it does not."""
+    from hwid.diagnose.floor_lines import structure_items, verdict_with_lines
+    from hwid.diagnose.verdict import Candidate
+    floor = _floor_with_line(1.45)
+    assert verdict_with_lines("none", "", floor)[0] == "unexplained"
+    assert "1.45 rad/s" in verdict_with_lines("none", "", floor)[1]
+    delay = Candidate("time_delay", "linear", {"delay_s": 0.1}, 0.01, 0.01, 1.0, 50.0, 1.0)
+    assert verdict_with_lines(delay, "", floor)[0] == "unexplained"
+    near = Candidate("resonance", "linear", {"omega_n": 1.5, "zeta": 0.02}, 0.01, 0.01, 1.0, 50.0, 2.0)
+    far = Candidate("resonance", "linear", {"omega_n": 4.0, "zeta": 0.02}, 0.01, 0.01, 1.0, 50.0, 2.0)
+    assert verdict_with_lines(near, "", floor)[0] is near
+    assert verdict_with_lines(far, "", floor)[0] == "unexplained"
+    # nothing set aside: the verdict as it was
+    plain = gap.NoiseFloor(0.01, 1.0, 1000, 0.001, 0.0, np.zeros(0))
+    assert verdict_with_lines("none", "", plain) == ("none", "")
+    assert structure_items(plain) == []
+    kinds = [it["kind"] for it in structure_items(_floor_with_line(1.45, slow_z=40.0))]
+    assert kinds == ["narrow_band", "wander"]
