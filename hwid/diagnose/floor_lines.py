@@ -1,10 +1,10 @@
 """What the noise floor set aside, and how it bears on the verdict.
 
 Repeats of one input differ by noise alone on a plant that repeats itself: whatever the plant does
-deterministically cancels in their difference. A narrow-band component of that difference
-(:func:`hwid.spectral_lines.find_lines`, ``NoiseFloor.lines``) is a disturbance at a frequency of
-its own (a periodic load, a pick-up) that meets each repeat at another phase; a slow excess
-(``NoiseFloor.slow_z``) is a wander. Neither is noise, so neither is in the floor; both are
+deterministically cancels in their difference; a settled hold's scatter is noise alone too. A
+narrow-band component of either (:func:`hwid.spectral_lines.find_lines`, ``NoiseFloor.lines``) is
+a disturbance at a frequency of its own (a periodic load, a pick-up) that meets each repeat at
+another phase; a slow excess (``NoiseFloor.slow_z``) is a wander. Neither is noise, so neither is in the floor; both are
 reported in ``residual_structure`` (:func:`structure_items`).
 
 The one catalogue effect that can leave a line in the repeats' differences is a lightly damped
@@ -31,11 +31,11 @@ def structure_items(floor) -> list[dict]:
     out = []
     for ln in getattr(floor, "lines", ()):
         d = ln.to_dict()
-        out.append({**d, "evidence": (f"the repeated experiments differ by a sinusoid at {d['rad_s']:.4g} rad/s "
-                                      f"({d['frequency_hz']:.4g} Hz), amplitude {d['amplitude']:.3g} in their "
-                                      f"differences over sqrt(2), {100 * d['variance_share']:.0f} % of those "
-                                      "differences: a disturbance at a frequency of its own, not noise; set "
-                                      "aside from the noise floor")})
+        out.append({**d, "evidence": (f"what the noise floor is estimated from (the repeats' differences, or the "
+                                      f"settled holds' scatter) holds a sinusoid at {d['rad_s']:.4g} rad/s "
+                                      f"({d['frequency_hz']:.4g} Hz), amplitude {d['amplitude']:.3g} there, "
+                                      f"{100 * d['variance_share']:.0f} % of its variance: a disturbance at a "
+                                      "frequency of its own, not noise; set aside from the noise floor")})
     if floor.slow_z > WANDER_Z:
         out.append({"kind": "wander", "rms": float(floor.slow_rms), "z": float(floor.slow_z),
                     "p_value": float(np.exp(-0.5 * floor.slow_z ** 2)),
@@ -66,8 +66,9 @@ def verdict_with_lines(verdict, why: str, floor, echo=None) -> tuple[object, str
         if all(abs(ln.omega / wn - 1.0) <= MODE_TOLERANCE for ln in lines):
             return verdict, why
     at = ", ".join(f"{ln.omega:.4g} rad/s" for ln in lines)
-    why = (f"the repeated experiments differ by a narrow-band component at {at} (set aside from the noise "
-           f"floor): a disturbance at a frequency of its own, which no catalogue effect makes"
+    why = (f"what the noise floor is estimated from (the repeats' differences, or the settled holds' scatter) "
+           f"holds a narrow-band component at {at}, set aside from the floor: a disturbance at a frequency of "
+           f"its own, which no catalogue effect makes"
            + (f"; {effect} does not account for it" if effect != "none" else "") + ": unexplained")
     if echo is not None:
         echo(why)
