@@ -104,3 +104,14 @@ def test_mode_and_delay_rigs_never_the_wrong_one_alone(tmp_path, driver, truth, 
     sine = s["next_experiment"]["config"]["protocols"]["sine"]
     assert 0.8 * mode["params"]["omega_n"] - 1e-9 <= sine["frequencies"][0] <= 1.25 * mode["params"]["omega_n"] + 1e-9
     assert 0 < sine["amplitude"] <= 1.0
+
+
+def test_a_mode_at_the_damping_bound_is_no_rival():
+    """A resonance pressed against zeta's bound is a low-pass standing in for a lag: even where it
+    fits like the delay, the two are not compared as a mode and a delay."""
+    import dataclasses
+    y = 0.01 * np.random.default_rng(2).standard_normal(400)
+    delay = _cand("time_delay", 0.0100, np.zeros(400))
+    mode = dataclasses.replace(_cand("resonance", 0.0101, np.full(400, 0.002)), at_bound=True)
+    assert mode_or_delay.compare(delay, [delay, mode], Relevance(0.02, 0.01), [y], [np.ones(400, bool)],
+                                 0.01, 1.0) is None

@@ -4,7 +4,8 @@ where they cannot.
 A lightly damped mode above the band G was identified on and a pure delay both turn the phase of
 what passes G, and on experiments that barely reach the mode they fit alike. When the verdict is one
 of the two and the other also removes a practically relevant part of the gap
-(:class:`hwid.diagnose.verdict.Relevance`), both fitted, the two are compared on the validation data
+(:class:`hwid.diagnose.verdict.Relevance`), both fitted and neither pressed against the bound that
+defines it (a "mode" at the damping bound is a low-pass that stands in for a lag), the two are compared on the validation data
 by the paired test of the diagnosis (:func:`hwid.diagnose.verdict.paired_z`: the difference of their
 squared errors against its spread when both fit alike):
 
@@ -51,6 +52,8 @@ def compare(verdict, cands, relevant: Relevance, y_val, m_val, sigma: float, kap
     name = PAIR[1 - PAIR.index(verdict.effect)]
     other = next((c for c in cands if c.effect == name), None)
     if other is None or not (verdict.predictions and other.predictions) or other.stands_in is not None:
+        return None
+    if verdict.at_bound or other.at_bound:      # a "mode" at the damping bound is a low-pass, no mode
         return None
     if not (relevant(verdict) and relevant(other)):
         return None
