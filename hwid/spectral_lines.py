@@ -46,6 +46,11 @@ WINDOW = 12.0
 #: frequencies' (on white noise, 3 pieces of 300-5000 samples, 1000 trials each: 2-3 per 1000 false
 #: lines at the nominal count and ALPHA 1e-3, so a factor 2.5 brings the rate to ALPHA)
 SCALLOP = 2.5
+#: an input's line (p at one frequency alone), whose frequency and harmonics a residual's line at
+#: is the input's (:func:`find_lines` with ``inputs``)
+INPUT_P = 1e-3
+#: the harmonics of an input's line that are the input's too
+HARMONICS = 5
 #: fewest samples of a piece the test looks at
 MIN_PIECE = 64
 
@@ -87,8 +92,9 @@ def _periodogram(pieces, L: int) -> np.ndarray:
     return T
 
 
-def _peak(pieces, L: int) -> tuple[int, float] | None:
-    """The grid index of the most significant ordinate and its family-wise p-value."""
+def _ordinates(pieces, L: int):
+    """Every testable grid index ``k``, the log p-value of its ordinate against the local level
+    (one frequency alone) and the number of independent frequencies tested; None if none is."""
     n_min, n_max = min(x.size for _, x in pieces), max(int(i[-1]) + 1 for i, _ in pieces)
     T = _periodogram(pieces, L)
     per_bin = L / n_max                        # grid points per Fourier bin of the longest piece
@@ -110,10 +116,44 @@ def _peak(pieces, L: int) -> tuple[int, float] | None:
     P = len(pieces)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(level > 0, T[k] / level, 0.0)
-    logp = stats.f.logsf(ratio, 2 * P, 2 * q)
-    j = int(np.argmin(logp))
     tests = SCALLOP * max((k[-1] - k[0]) * n_max / L, 1.0)   # independent frequencies tested
+    return k, stats.f.logsf(ratio, 2 * P, 2 * q), tests
+
+
+def _peak(pieces, L: int, locked=None) -> tuple[int, float] | None:
+    """The grid index of the most significant ordinate (not among ``locked``, a boolean array over
+    the grid) and its family-wise p-value."""
+    found = _ordinates(pieces, L)
+    if found is None:
+        return None
+    k, logp, tests = found
+    if locked is not None:
+        keep = ~locked[k]
+        k, logp = k[keep], logp[keep]
+        if not k.size:
+            return None
+    j = int(np.argmin(logp))
     return int(k[j]), float(min(1.0, np.exp(logp[j]) * tests))
+
+
+def _locked(inputs, L: int, harmonics: int = HARMONICS) -> np.ndarray | None:
+    """Grid points at a line of the ``inputs`` (p below :data:`INPUT_P` at that frequency alone) or
+    at a harmonic 2..``harmonics`` of one, widened by the exclusion: what the input drives there is
+    the model's to explain, no disturbance of its own."""
+    found = _ordinates(inputs, L)
+    if found is None:
+        return None
+    k, logp, _ = found
+    n_max = max(int(i[-1]) + 1 for i, _ in inputs)
+    width = int(np.ceil(EXCLUDE * L / n_max))
+    out = np.zeros(L // 2 + 1, bool)
+    for kk in k[logp < np.log(INPUT_P)]:
+        for m in range(1, harmonics + 1):
+            c = int(round(m * kk))
+            if c - width >= out.size:
+                break
+            out[max(c - width, 0):min(c + width + 1, out.size)] = True
+    return out
 
 
 def _fit(pieces, omega_dt: float) -> tuple[list[np.ndarray], float, float]:
@@ -136,13 +176,16 @@ def _refine(pieces, k: int, L: int) -> float:
     return float(max(grid, key=lambda w: _fit(pieces, w)[1]))
 
 
-def find_lines(pieces, dt: float, alpha: float = ALPHA, max_lines: int = MAX_LINES, independent=None):
+def find_lines(pieces, dt: float, alpha: float = ALPHA, max_lines: int = MAX_LINES, independent=None, inputs=None):
     """The narrow-band components of ``pieces`` (arrays, or ``(sample index, value)`` pairs for
     pieces with gaps) sampled every ``dt`` s, and the pieces with them taken out (module docstring).
 
     ``independent``: the indices of the pieces whose noise is independent of each other's (the
     test's null distribution counts them as such; differences of three repeats pairwise share
-    records), default all; a line found on them is taken out of every piece.
+    records), default all; a line found on them is taken out of every piece. ``inputs``: for
+    pieces that are a model's residual, the input on the same samples (same form as ``pieces``):
+    a residual's line at a line of the input, or at one of its harmonics (:func:`_locked`), is the
+    model's error at what the input drives, not a disturbance, and is neither tested nor taken out.
 
     Returns ``(cleaned pieces, [Line, ...])``, the cleaned pieces as value arrays in the order
     given; pieces shorter than :data:`MIN_PIECE` samples or not finite are returned as they are and
@@ -158,9 +201,13 @@ def find_lines(pieces, dt: float, alpha: float = ALPHA, max_lines: int = MAX_LIN
     work = [pieces[i] for i in use]
     L = 1 << int(np.ceil(np.log2(OVERSAMPLE * max(int(work[j][0][-1]) + 1 for j in test))))
     total = float(sum(np.sum((x - x.mean()) ** 2) for _, x in work))
+    locked = None
+    if inputs is not None:
+        ins = [_as_pieces(inputs)[i] for i in use]
+        locked = _locked([ins[j] for j in test], L)
     lines = []
     while len(lines) < max_lines and total > 0:
-        found = _peak([work[j] for j in test], L)
+        found = _peak([work[j] for j in test], L, locked)
         if found is None or found[1] >= alpha:
             break
         omega_dt = _refine([work[j] for j in test], found[0], L)

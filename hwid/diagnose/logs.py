@@ -257,6 +257,7 @@ def holds_floor(exps, recs, xs, design):
     for e, r, x in zip(exps, recs, xs):
         known = x_of.get(id(r), (None, np.zeros(r.u.size, bool)))[1] | e.mask
         x_of[id(r)] = (x, known)
+    residual, record_lines = _residuals_without_lines(distinct, x_of, design.dt)
     holds, tails, keys = [], [], []
     span = max(float(np.ptp(np.concatenate([x for x, _ in x_of.values()]))), 1e-12)
     for r in distinct:
@@ -268,7 +269,7 @@ def holds_floor(exps, recs, xs, design):
             a = max(a + settle, (a + b) // 2)
             if b - a < 40 or not known[a:b].all():
                 continue
-            res = (np.asarray(r.y, float) - x)[a:b]
+            res = residual[id(r)][a:b]
             holds.append(res)
             tails.append(x[a:b] - x[b - 1])
             # the model's settled output at the hold's end, to a thousandth of its span: the
@@ -289,5 +290,31 @@ def holds_floor(exps, recs, xs, design):
     for res, tail in zip(holds, tails):
         moving = np.flatnonzero(np.abs(tail) > 0.25 * first.sigma)
         still.append(res[int(moving[-1]) + 1 if moving.size else 0:])
-    floor = replace(gap.noise_floor_from_holds(holds, y_scale, repeats, still=still), lines=tuple(lines))
+    floor = replace(gap.noise_floor_from_holds(holds, y_scale, repeats, still=still),
+                    lines=tuple(record_lines) + tuple(lines))
     return floor, sum(len(g) for g in repeats), len(repeats)
+
+
+def _residuals_without_lines(records, x_of: dict, dt: float) -> tuple[dict, list]:
+    """Each record's residual ``y - x`` (``x_of[id(record)] = (x, known)``), with the narrow-band
+    components of its known samples that its input does not drive taken out
+    (:func:`hwid.spectral_lines.find_lines` with the input: a load at a frequency of its own runs on
+    through a whole record, phase-continuous, where one hold is too short to show it), and those
+    components."""
+    out, pieces, inputs, owners = {}, [], [], []
+    for r in records:
+        if id(r) not in x_of:
+            continue
+        x, known = x_of[id(r)]
+        out[id(r)] = np.asarray(r.y, float) - x
+        idx = np.flatnonzero(known)
+        if idx.size:
+            pieces.append((idx, out[id(r)][idx]))
+            inputs.append((idx, np.asarray(r.u, float)[idx]))
+            owners.append(id(r))
+    if not pieces:
+        return out, []
+    cleaned, lines = spectral_lines.find_lines(pieces, dt, inputs=inputs)
+    for owner, (idx, _), values in zip(owners, pieces, cleaned):
+        out[owner][idx] = values
+    return out, lines
