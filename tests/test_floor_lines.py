@@ -170,3 +170,18 @@ def test_a_line_makes_none_and_other_effects_unexplained_but_not_its_own_mode():
     assert structure_items(plain) == []
     kinds = [it["kind"] for it in structure_items(_floor_with_line(1.45, slow_z=40.0))]
     assert kinds == ["narrow_band", "wander"]
+
+
+def test_a_residual_line_at_the_inputs_frequency_or_harmonic_is_the_models():
+    """A model's residual with its error at an input sine (1 rad/s) and that sine's third harmonic,
+    and a load at 0.68 rad/s of its own: given the input, only the load is a line (within 1 %);
+    without it all three are."""
+    rng = np.random.default_rng(0)
+    n = 20000
+    t = 0.02 * np.arange(n)
+    u = np.sin(t) + np.repeat(rng.uniform(-1, 1, n // 500), 500)
+    res = 0.05 * np.sin(t + 0.3) + 0.03 * np.sin(3 * t) + 0.04 * np.sin(0.68 * t) + 0.01 * rng.standard_normal(n)
+    (line,) = spectral_lines.find_lines([res], 0.02, inputs=[u])[1]
+    assert line.omega == pytest.approx(0.68, rel=0.01)
+    found = sorted(ln.omega for ln in spectral_lines.find_lines([res], 0.02)[1])
+    assert found == pytest.approx([0.68, 1.0, 3.0], rel=0.01)
