@@ -12,7 +12,10 @@ The noise floor (:func:`estimate_floor`) comes, in this order, from
   whose variance is ``sigma^2 (1 - h_0)`` for white noise (``h_0`` the smoother's centre weight);
 
 never below the output's quantum ``q / sqrt(12)`` and never above the output's own spread (a floor
-that large is undetermined: the data cannot tell noise from signal).
+that large is undetermined: the data cannot tell noise from signal). Narrow-band components of the
+repeats' differences or of the holds' scatter (a load at a frequency of its own,
+:func:`hwid.spectral_lines.find_lines`) are no noise: they are taken out before the floor is
+estimated and listed in ``NoiseFloor.set_aside``.
 
 The verdict (:func:`assess`): the model's mean-square residual over the floor's is ``F(n_eff, dof)``
 distributed when the residual is noise (``n_eff`` the scored samples over the noise's correlation
@@ -27,6 +30,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 from scipy import signal, special, stats
+
+from hwid import spectral_lines
 
 #: false-alarm rate of the misfit test on a correct model (per assessment)
 ALPHA = 0.01
@@ -53,7 +58,9 @@ class NoiseFloor:
 
     ``dof`` are the degrees of freedom of ``sigma^2`` (0: not from data); ``kappa`` the noise's
     correlation time in samples (1: white); ``determined`` is False where the estimate came out at
-    or above the output's own spread (``sigma`` is then that spread, and ``reason`` says so)."""
+    or above the output's own spread (``sigma`` is then that spread, and ``reason`` says so);
+    ``set_aside`` the narrow-band components taken out of the source before the estimate
+    (:meth:`hwid.spectral_lines.Line.to_dict` each)."""
 
     sigma: float
     source: str
@@ -62,6 +69,7 @@ class NoiseFloor:
     kappa: float = 1.0
     determined: bool = True
     reason: str = ""
+    set_aside: tuple = ()
 
     def interval(self, level: float = 0.95) -> tuple[float, float] | None:
         """The ``level`` sampling interval of ``sigma`` (chi-square on ``dof``), None without dof."""
@@ -72,7 +80,8 @@ class NoiseFloor:
 
     def to_dict(self) -> dict:
         iv = self.interval()
-        return {**asdict(self), "interval": None if iv is None else list(iv)}
+        return {**asdict(self), "set_aside": [dict(d) for d in self.set_aside],
+                "interval": None if iv is None else list(iv)}
 
 
 @dataclass(frozen=True)
@@ -117,7 +126,7 @@ class Adequacy:
         if not d:
             return None
         fields = {f.name for f in dataclasses.fields(NoiseFloor)}
-        floor = NoiseFloor(**{k: v for k, v in d["floor"].items() if k in fields})
+        floor = NoiseFloor(**{k: tuple(v) if k == "set_aside" else v for k, v in d["floor"].items() if k in fields})
         own = {f.name for f in dataclasses.fields(cls)}
         return cls(**{k: v for k, v in d.items() if k in own and k != "floor"}, floor=floor)
 
@@ -256,22 +265,41 @@ def _start(rec) -> int:
     return int(getattr(rec, "attrs", {}).get("pre", 0) or 0)
 
 
+def _without_lines(pieces, records, independent=None) -> tuple[list[np.ndarray], tuple]:
+    """``pieces`` with their narrow-band components taken out (:func:`hwid.spectral_lines.find_lines`,
+    at the records' sample time, tested on the ``independent`` pieces), and those components as dicts."""
+    dt = float(getattr(records[0], "dt", 0.0) or 0.0) if records else 0.0
+    if not (pieces and dt > 0):
+        return pieces, ()
+    cleaned, lines = spectral_lines.find_lines(pieces, dt, independent=independent)
+    return cleaned, tuple(ln.to_dict() for ln in lines)
+
+
+def _lines_note(lines: tuple) -> str:
+    if not lines:
+        return ""
+    return "; narrow-band component(s) at " + ", ".join(f"{ln['rad_s']:.4g} rad/s" for ln in lines) + " set aside"
+
+
 def _repeats(records) -> tuple | None:
-    """The floor from pairs of records with identical inputs: ``(var, dof, kappa, detail)`` or None."""
-    parts, pairs = [], 0
+    """The floor from pairs of records with identical inputs: ``(var, dof, kappa, detail, set
+    aside)`` or None."""
+    diffs, pairs, who = [], 0, []
     for i, a in enumerate(records):
         ua = np.asarray(a.u, float)[_start(a):]
-        for b in records[i + 1:]:
+        for j, b in enumerate(records[i + 1:], i + 1):
             ub = np.asarray(b.u, float)[_start(b):]
             if ua.size != ub.size or ua.size < 5 * MIN_BLOCK or not np.array_equal(ua, ub):
                 continue
             d = (np.asarray(a.y, float)[_start(a):] - np.asarray(b.y, float)[_start(b):]) / np.sqrt(2.0)
-            parts += _blocks(d[d.size // 5:])     # the first fifth: the starts may differ
+            diffs.append(d[d.size // 5:])         # the first fifth: the starts may differ
+            who.append((i, j))
             pairs += 1
-    found = correlated_floor(parts)
+    diffs, lines = _without_lines(diffs, records, spectral_lines.disjoint(who))
+    found = correlated_floor([b for d in diffs for b in _blocks(d)])
     if found is None or found[1] < MIN_DOF:
         return None
-    return (*found, f"{pairs} pair(s) of repeated records")
+    return (*found, f"{pairs} pair(s) of repeated records{_lines_note(lines)}", lines)
 
 
 def hold_segments(u: np.ndarray, min_samples: int = 2 * MIN_BLOCK) -> list[tuple[int, int]]:
@@ -285,18 +313,17 @@ def hold_segments(u: np.ndarray, min_samples: int = 2 * MIN_BLOCK) -> list[tuple
 
 
 def _holds(records) -> tuple | None:
-    """The floor from the settled half of each hold: ``(var, dof, kappa, detail)`` or None."""
-    parts, holds = [], 0
+    """The floor from the settled half of each hold: ``(var, dof, kappa, detail, set aside)`` or None."""
+    settled = []
     for r in records:
         y = np.asarray(r.y, float)
-        for a, b in hold_segments(r.u):
-            blocks = _blocks(y[(a + b) // 2:b])
-            parts += blocks
-            holds += bool(blocks)
+        settled += [y[(a + b) // 2:b] for a, b in hold_segments(r.u) if b - (a + b) // 2 >= MIN_BLOCK]
+    settled, lines = _without_lines(settled, records)
+    parts = [b for s in settled for b in _blocks(s)]
     found = correlated_floor(parts)
     if found is None or found[1] < MIN_DOF:
         return None
-    return (*found, f"{holds} hold(s)")
+    return (*found, f"{len(settled)} hold(s){_lines_note(lines)}", lines)
 
 
 def _smoother_kernel(window: int) -> tuple[float, float]:
@@ -326,7 +353,7 @@ def _smoother(records) -> tuple | None:
     pooled = _pooled(pieces)
     if pooled is None:
         return None
-    return pooled[0], pooled[1], 1.0, f"a local quartic over {SMOOTHER_WINDOW} samples on {used} record(s)"
+    return pooled[0], pooled[1], 1.0, f"a local quartic over {SMOOTHER_WINDOW} samples on {used} record(s)", ()
 
 
 def output_quantum(records, quantum: float = 0.0) -> float:
@@ -365,10 +392,10 @@ def estimate_floor(records, quantum: float = 0.0) -> NoiseFloor:
     for source, how in (("repeats", _repeats), ("holds", _holds), ("smoother", _smoother)):
         found = how(records)
         if found is not None:
-            var, dof, kappa, detail = found
+            var, dof, kappa, detail, aside = found
             break
     else:
-        source, var, dof, kappa, detail = "quantum", 0.0, 0.0, 1.0, "no repeat, hold or record long enough"
+        source, var, dof, kappa, detail, aside = "quantum", 0.0, 0.0, 1.0, "no repeat, hold or record long enough", ()
     sigma, reason = float(np.sqrt(var)), f"from {detail}"
     if sigma < qf:
         sigma, source, dof = float(qf), "quantum", 0.0
@@ -376,13 +403,13 @@ def estimate_floor(records, quantum: float = 0.0) -> NoiseFloor:
     if sigma == 0.0:
         sigma = 1e-6 * spread if spread > 0 else 1e-12
         reason += "; no noise seen, floor set at 1e-6 of the output's spread"
-    floor = NoiseFloor(sigma, source, float(qf), float(dof), float(kappa), True, reason)
+    floor = NoiseFloor(sigma, source, float(qf), float(dof), float(kappa), True, reason, aside)
     upper = floor.interval(0.99)
     if sigma >= spread or (upper is not None and upper[1] >= spread):
         reason += (f"; the estimate {sigma:.4g} is not clearly below the output's own spread {spread:.4g}: the data "
                    "cannot tell noise from signal")
         return NoiseFloor(float(min(sigma, spread)) if spread > 0 else sigma, source, float(qf), 0.0, kappa, False,
-                          reason)
+                          reason, aside)
     return floor
 
 

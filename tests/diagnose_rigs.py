@@ -594,3 +594,51 @@ def bow_in(u, dt):
 
 def bow_out(u, dt):
     return _cubic_rig("bow_out", u, dt)
+
+
+# ------------------------------------------------------------------ a load at its own frequency; a fast mode, a delay (issue 47)
+
+#: a periodic load at G's input at its own frequency (rad/s; not a protocol sine's 0.5, 1, 2), its
+#: amplitude at G's input (about 6x the noise at the output) and phase at the rig's time zero
+PERIODIC_LOAD = {"omega": 1.45, "amp": 0.12, "phase": 0.7}
+#: a lightly damped mode far above the sines' band (0.5-2 rad/s), and a pure delay (s)
+FAST_MODE = {"omega_n": 14.0, "zeta": 0.03}
+DELAY = {"delay_s": 0.2}
+
+
+def periodic_load(u, dt):
+    """The plain base plant with a sinusoidal load :data:`PERIODIC_LOAD` added to the gear's output
+    (G's input), running in the rig's own time across calls: a disturbance at its own frequency,
+    not an effect of the catalogue. Repeats of one input see it at different phases."""
+    r = _rig("periodic_load")
+    u = np.asarray(u, float)
+    p = PERIODIC_LOAD
+    t = r.t + np.arange(u.size) * dt
+    r.t = float(t[-1] + dt) if u.size else r.t
+    v = r.gear_out(u, 0.3) + p["amp"] * np.sin(p["omega"] * t + p["phase"])
+    b, a = _zoh(dt)
+    zi = signal.lfiltic(b, a, y=[v[0]] * (len(a) - 1), x=[v[0]] * (len(b) - 1))
+    w = signal.lfilter(b, a, v, zi=zi)[0]
+    return w - 0.1 * w ** 3 + r.noise(u.size)
+
+
+def fast_mode(u, dt):
+    """G with a lightly damped mode :data:`FAST_MODE` (14 rad/s, zeta 0.03) above the band."""
+    r = _rig("fast_mode")
+    u = np.asarray(u, float)
+    t = FAST_MODE
+    return r.base(u, dt, mode=(t["omega_n"], t["zeta"])) + r.noise(u.size)
+
+
+def pure_delay(u, dt):
+    """The plain base plant whose output lags by :data:`DELAY` (whole samples at dt = 0.04 s: 5),
+    the delay line carried over from call to call."""
+    r = _rig("pure_delay")
+    u = np.asarray(u, float)
+    k = int(round(DELAY["delay_s"] / dt))
+    x = r.base(u, dt)
+    line = getattr(r, "line", None)
+    line = np.full(k, x[0]) if line is None or line.size != k else line
+    full = np.concatenate([line, x])
+    r.line = full[full.size - k:]
+    return full[:u.size] + r.noise(u.size)

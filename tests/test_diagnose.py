@@ -88,6 +88,8 @@ def test_plain_plant_is_none(plain):
     assert s["gap_before"] < 1.05 * s["noise_floor"]
     assert not s["test"]["significant"]
     assert s["residual_structure"] == []
+    # white noise: nothing set aside from the floor
+    assert s["noise"]["set_aside"] == []
 
 
 

@@ -12,15 +12,17 @@ from pathlib import Path
 import numpy as np
 
 from hwid import HwidError
-from hwid.diagnose import confirm, corrected, findings, gap, rank, residual_structure
+from hwid.diagnose import confirm, corrected, findings, gap, mode_or_delay, rank, residual_structure
 from hwid.diagnose.baseline import has_outside_modes
 from hwid.diagnose.context import Context, Validation, sine_band
 from hwid.diagnose.effects import CATALOGUE, catalogue
+from hwid.diagnose.floor_lines import verdict_with_lines
 from hwid.diagnose.log_drift import (drift_from_residual, drift_leaves_little, drift_takes_the_excess,
                                      input_predicts_it, repeats_under_best)
 from hwid.diagnose.model_check import (adequacy_tail, adequacy_where, changed_or_inadequate, describe_misfit,
                                       fails_own_records, model_adequacy, not_none_from_a_misfit)
 from hwid.diagnose.modelsim import ModelSim
+from hwid.diagnose.next_experiment import propose_mode_sine
 from hwid.diagnose.verdict import (Candidate, Relevance, alternative_baseline, eligible, indistinguishable,
                                     named_from_rails, refloor, simplest_in_group)
 from hwid.diagnose.verdict import verdict as decide_verdict
@@ -161,6 +163,7 @@ class Decision:
     remainder: list | None = None
     level: dict | None = None
     confirmation: object = None
+    mode_or_delay: object = None
 
 
 def conclude(ctx: Context) -> dict:
@@ -208,6 +211,7 @@ def conclude(ctx: Context) -> dict:
                                           or (decision.verdict, decision.why))
     decision.verdict, decision.why = not_none_from_a_misfit(ctx, decision.verdict, decision.why,
                                                              gaps.min_ratio)
+    decision.verdict, decision.why = verdict_with_lines(decision.verdict, decision.why, ctx.floor, ctx.echo)
     return write_result(ctx, gaps, cands, drift_ok, by_effect, decision, on_rails, t0)
 
 
@@ -284,7 +288,10 @@ def decide(ctx: Context, gaps: Gaps, cands, drift_ok: bool, without) -> Decision
         echo(f"{verdict.effect} and {simplest.effect} fit the validation data alike: the one with fewer "
              f"parameters, {simplest.effect}, is named")
         verdict = simplest
-    d = Decision(verdict, why, groups)
+    between = mode_or_delay.compare(verdict, cands, gaps.relevant, ctx.val.y_val, ctx.val.m_val, sigma,
+                                    ctx.floor.kappa)
+    verdict, groups = mode_or_delay.settle(verdict, groups, cands, between, echo)
+    d = Decision(verdict, why, groups, mode_or_delay=between)
     d.remainder = (ctx.val.remainder_of(verdict.predictions, ctx.sim_model.input)
                    if not identified and isinstance(verdict, Candidate) else None)
     d.level = _lag_by_level(verdict, ctx.val, gaps.fitter if ctx.from_logs else None)
@@ -331,6 +338,7 @@ def write_result(ctx: Context, gaps: Gaps, cands, drift_ok: bool, by_effect, d: 
                                                                          "records": adequacy_where(ctx)}
     if ctx.extra is not None:
         ctx.extra(gaps.fitter, cands, d.verdict, d.groups, summary)
+    _mode_or_delay_note(ctx, gaps, cands, d, summary)
     summary["cost"]["seconds_total"] = time.perf_counter() - ctx.t_start
     starts = corrected.write_for(ctx.out, d.verdict, gaps.fitter, ctx.sim_model, summary, ctx.echo)
     findings.write_h5(ctx.out / "diagnosis.h5", ctx.cfg, summary, ctx.val,
@@ -344,6 +352,22 @@ def write_result(ctx: Context, gaps: Gaps, cands, drift_ok: bool, by_effect, d: 
              f"noise floor {ctx.floor.sigma:.4g}"
              + adequacy_tail(ctx))
     return summary
+
+
+def _mode_or_delay_note(ctx: Context, gaps: Gaps, cands, d: Decision, summary: dict) -> None:
+    """The comparison of a delay with a fast mode (:mod:`hwid.diagnose.mode_or_delay`) as JSON
+    ``test.mode_or_delay``; where the data could not separate them and the verdict still names one,
+    the sine near the fitted mode that would (``next_experiment``)."""
+    if d.mode_or_delay is None:
+        return
+    summary["test"]["mode_or_delay"] = d.mode_or_delay.to_dict()
+    if d.mode_or_delay.separable or not isinstance(d.verdict, Candidate):
+        return
+    members = [next(c for c in cands if c.effect == e) for e in mode_or_delay.PAIR]
+    prop = propose_mode_sine(gaps.fitter, members, ctx.val.design, ctx.floor.sigma, ctx.floor.kappa)
+    if prop is not None:
+        summary["next_experiment"] = prop
+        ctx.echo(f"next experiment: {prop['why']}")
 
 
 def _baseline_note(verdict, gaps: Gaps) -> str:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from hwid.diagnose import gap
 from hwid.diagnose.effects import BLOCK
+from hwid.diagnose.floor_lines import with_floor_items
 from hwid.diagnose.result import DiagnosisResult
 from hwid.diagnose.verdict import Candidate
 from hwid.results import write_diagnosis
@@ -86,7 +87,7 @@ def build(cfg, val, verdict, cands, res_before, gap_before, gap_ref, floor, test
         design={"settle_s": design.settle_s, "omega_c": design.omega_c, "u_range": [design.u_lo, design.u_hi],
                 "amplitude": design.amplitude, "experiments": [e.name for e in val.exps]},
         cost=dict(cost),
-        residual_structure=val.remainder if name == "unexplained" else [],
+        residual_structure=with_floor_items(val.remainder, floor) if name == "unexplained" else [],
         indistinguishable=list(groups))
 
 

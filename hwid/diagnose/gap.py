@@ -10,7 +10,10 @@ different times: whatever the model gets wrong deterministically cancels in ``d`
 moving average of two settling times is removed from ``d`` first (so a slow drift does not count as
 noise; its variance lost by the filter is restored by the factor ``M/(M-1)``). The same ``d`` gives
 the noise's correlation (``kappa``, the integrated autocorrelation time in samples, by batch means)
-and so the null distribution of every gap statistic, for white or coloured noise alike.
+and so the null distribution of every gap statistic, for white or coloured noise alike. Before
+any of this, narrow-band components of ``d`` (a load at its own frequency meets each repeat at
+another phase, so it stays in ``d``) are found and taken out (:func:`hwid.spectral_lines.find_lines`):
+the floor is what is left, and what was set aside is reported with the floor (``lines``).
 """
 from __future__ import annotations
 
@@ -18,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hwid import spectral_lines
 from hwid.diagnose.modelsim import smooth
 from hwid.diagnose.experiments import REGIONS
 
@@ -42,6 +46,9 @@ class NoiseFloor:
         repeat itself (a disturbance such as drift).
     surrogate : np.ndarray
         ``d/sqrt(2)`` high-passed: a sample of the noise (spectra, null distributions).
+    lines : tuple of hwid.spectral_lines.Line
+        Narrow-band components found in ``d/sqrt(2)`` and set aside before the floor was estimated:
+        no noise, and nothing a plant that repeats itself makes.
     """
 
     sigma: float
@@ -50,10 +57,11 @@ class NoiseFloor:
     slow_rms: float
     slow_z: float
     surrogate: np.ndarray
+    lines: tuple = ()
 
     def to_dict(self) -> dict:
         return {"sigma": self.sigma, "kappa": self.kappa, "n": self.n, "slow_rms": self.slow_rms,
-                "slow_z": self.slow_z}
+                "slow_z": self.slow_z, "set_aside": [ln.to_dict() for ln in self.lines]}
 
 
 def correlation_time(e: np.ndarray) -> float:
@@ -74,20 +82,23 @@ def correlation_time(e: np.ndarray) -> float:
     return float(max(1.0, np.median(ks))) if ks else 1.0
 
 
-def noise_floor(pairs, width: int, y_scale: float) -> NoiseFloor:
+def noise_floor(pairs, width: int, y_scale: float, dt: float = 0.0) -> NoiseFloor:
     """Noise floor from ``pairs`` of (y_a, y_b, mask) of repeated experiments.
 
     Parameters
     ----------
+    dt : float
+        Sample time (s); with it, narrow-band components of the differences are found and set
+        aside first (:func:`hwid.spectral_lines.find_lines`, ``NoiseFloor.lines``).
     width : int
         Samples of the moving average removed from the differences (about two settling times).
     y_scale : float
         Output range; the floor is never below ``1e-6 y_scale`` (noise-free rigs still differ from
         a model in the last digits).
     """
+    diffs, lines = _differences(pairs, dt)
     parts, slow = [], []
-    for ya, yb, mask in pairs:
-        d = (np.asarray(ya, float) - np.asarray(yb, float))[np.asarray(mask, bool)] / np.sqrt(2)
+    for d in diffs:
         if d.size < 10:
             continue
         m = int(min(max(width, 20), d.size))
@@ -105,8 +116,7 @@ def noise_floor(pairs, width: int, y_scale: float) -> NoiseFloor:
     # their mean square is sigma^2 kappa / width with relative s.d. sqrt(2 / blocks)
     m = max(width, 20)
     bm = []
-    for ya, yb, mask in pairs:
-        d = (np.asarray(ya, float) - np.asarray(yb, float))[np.asarray(mask, bool)] / np.sqrt(2)
+    for d in diffs:
         nb = d.size // m
         if nb >= 1:
             bm.append(d[d.size - nb * m:].reshape(nb, m).mean(axis=1))
@@ -114,7 +124,22 @@ def noise_floor(pairs, width: int, y_scale: float) -> NoiseFloor:
     null = sigma ** 2 * kappa / m
     p_slow = float(np.mean(bm ** 2)) if bm.size else 0.0
     slow_z = float((p_slow / null - 1) / np.sqrt(2.0 / max(bm.size, 1))) if bm.size else 0.0
-    return NoiseFloor(sigma, kappa, int(e.size), float(np.sqrt(p_slow)), slow_z, e)
+    return NoiseFloor(sigma, kappa, int(e.size), float(np.sqrt(p_slow)), slow_z, e, tuple(lines))
+
+
+def _differences(pairs, dt: float) -> tuple[list[np.ndarray], list]:
+    """``d/sqrt(2)`` of each pair on its mask, with its narrow-band components taken out where
+    ``dt`` is given (:func:`hwid.spectral_lines.find_lines`, tested on pairs that share no record),
+    and those components."""
+    pieces, who = [], []
+    for ya, yb, mask in pairs:
+        keep = np.asarray(mask, bool)
+        ya, yb = np.asarray(ya, float), np.asarray(yb, float)
+        pieces.append((np.flatnonzero(keep), (ya - yb)[keep] / np.sqrt(2)))
+        who.append((hash(ya.tobytes()), hash(yb.tobytes())))
+    if not dt > 0:
+        return [d for _, d in pieces], []
+    return spectral_lines.find_lines(pieces, dt, independent=spectral_lines.disjoint(who))
 
 
 def noise_floor_from_holds(holds, y_scale: float, repeats=(), block: int = 20, still=None) -> NoiseFloor:

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hwid import HwidError
+from hwid import HwidError, spectral_lines
 from hwid.diagnose import experiments, gap
 from hwid.identify.split import MIN_SCORED
 from hwid.recorded import level_segments
@@ -225,7 +225,7 @@ def floor_from_logs(exps, recs, xs, F, design) -> tuple:
                 mask[max(known_from(ua, F, width // 2), 0):] = True
                 pairs.append((a.y[ka:], b.y[kb:], mask))
     if pairs:
-        floor, source = gap.noise_floor(pairs, width, y_scale), "repeats"
+        floor, source = gap.noise_floor(pairs, width, y_scale, design.dt), "repeats"
     else:
         held = holds_floor(exps, recs, xs, design)
         if held is not None:
@@ -257,7 +257,8 @@ def holds_floor(exps, recs, xs, design):
     for e, r, x in zip(exps, recs, xs):
         known = x_of.get(id(r), (None, np.zeros(r.u.size, bool)))[1] | e.mask
         x_of[id(r)] = (x, known)
-    holds, tails, keyed = [], [], {}
+    residual, record_lines = _residuals_without_lines(distinct, x_of, design.dt)
+    holds, tails, keys = [], [], []
     span = max(float(np.ptp(np.concatenate([x for x, _ in x_of.values()]))), 1e-12)
     for r in distinct:
         if id(r) not in x_of:
@@ -268,15 +269,19 @@ def holds_floor(exps, recs, xs, design):
             a = max(a + settle, (a + b) // 2)
             if b - a < 40 or not known[a:b].all():
                 continue
-            res = (np.asarray(r.y, float) - x)[a:b]
+            res = residual[id(r)][a:b]
             holds.append(res)
             tails.append(x[a:b] - x[b - 1])
             # the model's settled output at the hold's end, to a thousandth of its span: the
             # same state of the plant where the model is in the same state
-            key = (round(seg["value"], 9), round(float(x[b - 1]) / span, 3))
-            keyed.setdefault(key, []).append(res)
+            keys.append((round(seg["value"], 9), round(float(x[b - 1]) / span, 3)))
     if not holds:
         return None
+    # a disturbance at a frequency of its own is no noise and no wander: out of every hold first
+    holds, lines = spectral_lines.find_lines(holds, design.dt)
+    keyed = {}
+    for key, res in zip(keys, holds):
+        keyed.setdefault(key, []).append(res)
     repeats = [g for g in keyed.values() if len(g) >= 2]
     # whether the plant wanders at a constant input, where the model is still (within a quarter of
     # the noise of its end): what the plant does while the model still moves is the model's to explain
@@ -285,5 +290,31 @@ def holds_floor(exps, recs, xs, design):
     for res, tail in zip(holds, tails):
         moving = np.flatnonzero(np.abs(tail) > 0.25 * first.sigma)
         still.append(res[int(moving[-1]) + 1 if moving.size else 0:])
-    floor = gap.noise_floor_from_holds(holds, y_scale, repeats, still=still)
+    floor = replace(gap.noise_floor_from_holds(holds, y_scale, repeats, still=still),
+                    lines=tuple(record_lines) + tuple(lines))
     return floor, sum(len(g) for g in repeats), len(repeats)
+
+
+def _residuals_without_lines(records, x_of: dict, dt: float) -> tuple[dict, list]:
+    """Each record's residual ``y - x`` (``x_of[id(record)] = (x, known)``), with the narrow-band
+    components of its known samples that its input does not drive taken out
+    (:func:`hwid.spectral_lines.find_lines` with the input: a load at a frequency of its own runs on
+    through a whole record, phase-continuous, where one hold is too short to show it), and those
+    components."""
+    out, pieces, inputs, owners = {}, [], [], []
+    for r in records:
+        if id(r) not in x_of:
+            continue
+        x, known = x_of[id(r)]
+        out[id(r)] = np.asarray(r.y, float) - x
+        idx = np.flatnonzero(known)
+        if idx.size:
+            pieces.append((idx, out[id(r)][idx]))
+            inputs.append((idx, np.asarray(r.u, float)[idx]))
+            owners.append(id(r))
+    if not pieces:
+        return out, []
+    cleaned, lines = spectral_lines.find_lines(pieces, dt, inputs=inputs)
+    for owner, (idx, _), values in zip(owners, pieces, cleaned):
+        out[owner][idx] = values
+    return out, lines

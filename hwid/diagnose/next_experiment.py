@@ -106,11 +106,48 @@ def propose_against_play(fitter, cand, design, sigma: float, kappa: float) -> di
                     fitter, design, sigma, kappa)
 
 
-def _propose(labels, specs, fitter, design, sigma: float, kappa: float) -> dict:
+def mode_sines(design, omega_n: float) -> list[tuple[str, dict, list, list]]:
+    """Sines at and about a fitted mode's natural frequency ``omega_n`` (0.8, 1 and 1.25 times it),
+    each at the full amplitude of :func:`candidates`' sines and at a third of it, below a quarter of
+    the Nyquist frequency; empty where the input range does not hold u = 0 (hwid's sines are
+    centred on it) or the mode is above that frequency."""
+    d = design
+    if not (d.u_lo < 0.0 < d.u_hi and np.isfinite(omega_n) and omega_n > 0):
+        return []
+    amp = 0.9 * min(-d.u_lo, d.u_hi)
+    out = []
+    for k in (1.0, 0.8, 1.25):
+        omega = k * omega_n
+        if omega < 0.25 * np.pi / d.dt:
+            out.append((f"sine at {k:g}x the fitted mode ({omega:.4g} rad/s)", *_sine_fragment(amp, omega, d.dt)))
+            out.append((f"sine at {k:g}x the fitted mode ({omega:.4g} rad/s), a third of the amplitude",
+                        *_sine_fragment(amp / 3, omega, d.dt)))
+    return out
+
+
+def propose_mode_sine(fitter, members, design, sigma: float, kappa: float) -> dict | None:
+    """For a ``time_delay`` and a ``resonance`` the validation data cannot tell apart (both fitted,
+    :mod:`hwid.diagnose.mode_or_delay`): the sine near the resonance's fitted ``omega_n``
+    (:func:`mode_sines`) that separates them in the least rig time. A mode above the band rings
+    there and a delay only turns the phase, so a sine at the mode is where their predictions part.
+    None where no such sine can be run (the range does not hold u = 0, or the mode is beyond a
+    quarter of the Nyquist frequency) or a member was not fitted."""
+    mode = next((c for c in members if c.effect == "resonance"), None)
+    if mode is None or any(c.fitted is None or c.theta is None for c in members):
+        return None
+    options = mode_sines(design, float(mode.params.get("omega_n", np.nan)))
+    if not options:
+        return None
+    return _propose([c.effect for c in members], [(c.fitted, c.theta) for c in members], fitter, design, sigma,
+                    kappa, options)
+
+
+def _propose(labels, specs, fitter, design, sigma: float, kappa: float, options=None) -> dict:
     """The experiment separating the models ``specs`` (``(effect, theta)`` each, as
-    :meth:`hwid.diagnose.rank.EffectFitter.predict_on` takes them) named ``labels``."""
+    :meth:`hwid.diagnose.rank.EffectFitter.predict_on` takes them) named ``labels``, among
+    ``options`` (default :func:`candidates`)."""
     best = None
-    for name, frag, inputs, scored in candidates(design):
+    for name, frag, inputs, scored in (candidates(design) if options is None else options):
         preds = [fitter.predict_on(eff, theta, inputs) for eff, theta in specs]
         n_scored = int(sum(int(m.sum()) for m in scored))
         seconds = sum(u.size for u in inputs) * design.dt

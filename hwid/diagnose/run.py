@@ -113,7 +113,8 @@ def noise_floor(val: Validation):
     never above the output's own spread (a plant that does not repeat itself at all)."""
     by_name = {e.name: (e, r) for e, r in zip(val.exps, val.records)}
     pairs = [(r.y, by_name[e.repeat_of][1].y, e.mask) for e, r in zip(val.exps, val.records) if e.repeat_of]
-    floor = gap.noise_floor(pairs, int(round(2 * val.design.settle_s / val.design.dt)), val.scale.y_obs_width)
+    floor = gap.noise_floor(pairs, int(round(2 * val.design.settle_s / val.design.dt)), val.scale.y_obs_width,
+                          val.design.dt)
     spread = adequacy.output_spread([r for r in val.records if getattr(r, "y", None) is not None])
     if 0 < spread < floor.sigma:
         floor = dataclasses.replace(floor, sigma=spread)
