@@ -184,7 +184,7 @@ def test_corrected_model_reproduces_the_diagnosis_s_after_prediction(effect, tmp
         st = e["start_after"]
         assert st["exact"], e
         x = model.simulate(e["u"], e["dt"], gear=st["gear"], rest=st["rest"], position=st["position"],
-                           ringing=st["ringing"]).x
+                           ringing=st["ringing"], memory=st.get("memory")).x
         assert np.max(np.abs(x - e["y_after"])) < 1e-9
 
 
@@ -223,7 +223,7 @@ def _round_trip_error(out) -> float:
         st = e["start_after"]
         assert st["exact"], e["start_after"]
         x = model.simulate(e["u"], e["dt"], gear=st["gear"], rest=st["rest"], position=st["position"],
-                           ringing=st["ringing"]).x
+                           ringing=st["ringing"], memory=st.get("memory")).x
         worst = max(worst, float(np.max(np.abs(x - e["y_after"]))))
     return worst
 

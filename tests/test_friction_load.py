@@ -175,7 +175,7 @@ def _corrected_checks(s, tmp, driver):
     for e in (e for e in diag["experiments"].values() if e["role"] == "validation"):
         st = e["start_after"]
         x = model.simulate(e["u"], e["dt"], gear=st["gear"], rest=st["rest"], position=st["position"],
-                           ringing=st["ringing"]).x
+                           ringing=st["ringing"], memory=st.get("memory")).x
         assert np.max(np.abs(x - e["y_after"])) < 1e-9
     R._RIGS.pop(driver, None)
     (tmp / "held.yaml").write_text(yaml.safe_dump(_config(driver, seed=17, held_out=True)))

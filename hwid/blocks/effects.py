@@ -183,16 +183,21 @@ def friction_drive(v, coulomb: float, pre_sliding: float, viscous: float, dt: fl
     return out
 
 
-def hysteresis(w, width: float, weight: float, shape: float = 0.0) -> np.ndarray:
+def hysteresis(w, width: float, weight: float, shape: float = 0.0, start: float = 0.0,
+               from_sample: int = 0) -> np.ndarray:
     """``(1 - weight) w + weight P(w)``, ``P`` the Prandtl-Ishlinskii sum of :data:`HYSTERESIS_PLAYS`
     plays of largest half-width ``width`` and threshold density tilted by ``shape``
-    (:func:`hwid.blocks.hysteresis.pi_operator`)."""
-    return pi_operator(w, width, weight, shape)
+    (:func:`hwid.blocks.hysteresis.pi_operator`), the plays set to ``start`` (in [-1, 1]) at
+    ``from_sample``."""
+    return pi_operator(w, width, weight, shape, start, from_sample)
 
 
-def hysteresis_of(spec: "EffectSpec", x) -> np.ndarray:
-    """An ``output_hysteresis`` spec's operator on ``x``."""
-    return hysteresis(x, spec.get("width"), spec.get("weight", 1.0), spec.get("shape", 0.0))
+def hysteresis_of(spec: "EffectSpec", x, memory: dict | None = None) -> np.ndarray:
+    """An ``output_hysteresis`` spec's operator on ``x``, its plays set at ``memory``
+    (``{"from_sample", "start"}``; None: centred at the first sample)."""
+    m = memory or {}
+    return hysteresis(x, spec.get("width"), spec.get("weight", 1.0), spec.get("shape", 0.0),
+                      float(m.get("start", 0.0)), int(m.get("from_sample", 0)))
 
 
 def after_h(spec: "EffectSpec") -> bool:
@@ -365,9 +370,11 @@ def effective_blocks(F, G: LinearBlock, specs):
     return F, G
 
 
-def _after_input(F, G, h, specs, u, dt, gear, rest, ringing=None):
+def _after_input(F, G, h, specs, u, dt, gear, rest, ringing=None, memory=None):
     """``(v, w, x)`` of the chain after the input effects, on the actuator's output ``u`` (G's
-    output with a ringing start added, :func:`with_ringing`)."""
+    output with a ringing start added, :func:`with_ringing`; a friction on the load or the plays
+    of an output hysteresis started from ``memory``, ``{"from_sample", "start"}``, None: their
+    defaults)."""
     curve = next((s for s in specs if s.effect == "curved_borders"), None)
     if curve is not None:
         d = dict(curve.params)
@@ -390,27 +397,31 @@ def _after_input(F, G, h, specs, u, dt, gear, rest, ringing=None):
     else:
         w = fed_back_response(G, drive, dt, load.get("coulomb"), load.get("pre_sliding", 0.0),
                               load.get("viscous", 0.0), rest, load.get("sliding_speed"), load.get("stribeck", 1.0),
-                              load.get("stribeck_speed", 1.0), load.get("bristle_damping", 0.0))
+                              load.get("stribeck_speed", 1.0), load.get("bristle_damping", 0.0),
+                              (memory or {}).get("start", 0.0))
     w = with_ringing(w, dt, ringing)
-    return v, w, OutputStage(h, specs, dt)(w)
+    return v, w, OutputStage(h, specs, dt, memory)(w)
 
 
 def run_chain_with_effects(F, G: LinearBlock, h, specs, u, dt: float, gear: float | None = None,
-                           rest: float | None = None, position: float | None = None, ringing: dict | None = None):
+                           rest: float | None = None, position: float | None = None, ringing: dict | None = None,
+                           memory: dict | None = None):
     """The chain of eqs. (3a-c) with the effects ``specs`` at their blocks on the command ``u``:
     ``(v, w, x)``, ``v`` F's output (the gear), ``w`` G's output (before an output hysteresis),
     ``x`` the noise-free output. ``gear``, ``rest``: F's and G's starts as in
     :meth:`hwid.model.HWModel.simulate`; ``position``: where a rate limit that carries its position
     over (``carried`` > 0) starts its slew (None: at ``u[0]``, as a fresh call), its output then
-    ``x_fresh + carried (x_carried - x_fresh)``."""
+    ``x_fresh + carried (x_carried - x_fresh)``; ``memory``: where a friction on the load or an
+    output hysteresis starts its state, ``{"from_sample", "start"}`` (the friction's from the
+    first sample; None: no friction force, the plays centred)."""
     specs = tuple(specs)
     F, G = effective_blocks(F, G, specs)
     fresh, carried, share = _input_stage(specs, np.ascontiguousarray(u, float), dt, position)
     if carried is not None and share >= 1.0:       # the carried actuator alone
-        return _after_input(F, G, h, specs, carried, dt, gear, rest, ringing)
-    v, w, x = _after_input(F, G, h, specs, fresh, dt, gear, rest, ringing)
+        return _after_input(F, G, h, specs, carried, dt, gear, rest, ringing, memory)
+    v, w, x = _after_input(F, G, h, specs, fresh, dt, gear, rest, ringing, memory)
     if carried is not None:
-        _, _, xc = _after_input(F, G, h, specs, carried, dt, gear, rest, ringing)
+        _, _, xc = _after_input(F, G, h, specs, carried, dt, gear, rest, ringing, memory)
         x = x + share * (xc - x)
     return v, w, x
 
@@ -424,6 +435,7 @@ class OutputStage:
     h: object
     specs: tuple
     dt: float
+    memory: dict | None = None      # where an output hysteresis's plays start (None: centred)
 
     def __post_init__(self):
         object.__setattr__(self, "specs", tuple(self.specs))
@@ -431,11 +443,11 @@ class OutputStage:
     def __call__(self, w):
         for s in self.specs:
             if s.effect == "output_hysteresis" and not after_h(s):
-                w = hysteresis_of(s, w)
+                w = hysteresis_of(s, w, self.memory)
         x = self.h(w)
         for s in self.specs:
             if after_h(s):
-                x = hysteresis_of(s, x)
+                x = hysteresis_of(s, x, self.memory)
             elif s.effect == "sensor_lag":
                 x = first_order(x, s.get("tau_s"), self.dt)
             elif s.effect == "sensor_saturation":

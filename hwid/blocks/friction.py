@@ -119,7 +119,7 @@ def _root(z, a, g, x_pre, smooth, fs, vs_dt):
 
 
 @njit(cache=True)
-def _fed_back_run(vd, Phi, G1, G0, C, D, x0, v_prev, coulomb, x_pre, d_prev, smooth, fs, vs_dt, damp_dt):
+def _fed_back_run(vd, Phi, G1, G0, C, D, x0, v_prev, coulomb, x_pre, d_prev, smooth, fs, vs_dt, damp_dt, z0):
     """The ZOH recursion of G with the Dahl force fed back; ``vd`` the delayed gear output, G0 the
     fractional delay's share of the previous sample (zero without one); ``d_prev``: G's direct
     term sees the sample before (a fractional delay holds it at the sampling instant); ``smooth``:
@@ -139,9 +139,9 @@ def _fed_back_run(vd, Phi, G1, G0, C, D, x0, v_prev, coulomb, x_pre, d_prev, smo
     cg = 0.0
     for i in range(m):
         cg += C[i] * gam[i]
-    z = 0.0
+    z = z0
     vp = v_prev
-    w[0] = D * vd[0]
+    w[0] = D * (vd[0] - coulomb * z0)
     for i in range(m):
         w[0] += C[i] * x[i]
     for k in range(n - 1):
@@ -180,14 +180,16 @@ def with_viscous(G: LinearBlock, viscous: float) -> LinearBlock:
 
 def fed_back_response(G: LinearBlock, v, dt: float, coulomb: float, pre_sliding: float, viscous: float,
                       rest: float | None = None, sliding_speed: float | None = None, stribeck: float = 1.0,
-                      stribeck_speed: float = 1.0, bristle_damping: float = 0.0) -> np.ndarray:
+                      stribeck_speed: float = 1.0, bristle_damping: float = 0.0, memory: float = 0.0) -> np.ndarray:
     """G's output ``w`` driven by ``v - coulomb z(w) - viscous dw/dt`` (module docstring), from rest
     at the input level ``rest`` (default ``v[0]``) with no friction force (``z = 0``); with
     ``sliding_speed``, the smooth Coulomb law ``z = tanh(dw/dt / sliding_speed)`` in place of
     Dahl's (``pre_sliding`` unused); with ``stribeck > 1``, LuGre's Stribeck level (in Coulomb
     levels) at low speed, falling to the Coulomb level over ``stribeck_speed`` (G's output units per
     s); ``bristle_damping`` (s), LuGre's ``sigma1`` over ``sigma0``: the force
-    ``coulomb (z + bristle_damping dz/dt)``. Where the
+    ``coulomb (z + bristle_damping dz/dt)``. ``memory``: the friction state at the start (in
+    Coulomb levels; 0: none), G then at rest under the input less that force (a load held off its
+    equilibrium by the friction, as a rig left at rest after a move). Where the
     viscous feedback leaves G unstable (a G whose phase lets ``s G`` reach -1), a constant far
     beyond the data (1e6 times the input's size): a fit never picks it."""
     v = np.ascontiguousarray(v, dtype=float)
@@ -203,11 +205,12 @@ def fed_back_response(G: LinearBlock, v, dt: float, coulomb: float, pre_sliding:
     vd = np.concatenate([np.full(k, start), v[: v.size - k]]) if lag else v
     if n == 0:      # a static G: w = D (v - coulomb z(w)) solved sample by sample as a one-state G would be
         Phi, G1, G0, C = np.zeros((0, 0)), np.zeros(0), np.zeros(0), np.zeros(0)
-    x0 = unit_rest(key[0], key[1]) * start if n else np.zeros(0)
     smooth = sliding_speed is not None
+    z0 = 0.0 if smooth else float(np.clip(memory, -max(float(stribeck), 1.0), max(float(stribeck), 1.0)))
+    x0 = unit_rest(key[0], key[1]) * (start - float(coulomb) * z0) if n else np.zeros(0)
     scale = float(sliding_speed) * dt if smooth else float(pre_sliding)
     return _fed_back_run(vd, np.ascontiguousarray(Phi), np.ascontiguousarray(G1), np.ascontiguousarray(G0),
                          np.ascontiguousarray(C, dtype=float), float(D), np.ascontiguousarray(x0, dtype=float),
                          start, float(coulomb), max(float(scale), 1e-300), frac != 0.0, smooth,
                          max(float(stribeck), 1.0), max(float(stribeck_speed), 1e-300) * dt,
-                         max(float(bristle_damping), 0.0) / dt)
+                         max(float(bristle_damping), 0.0) / dt, z0)

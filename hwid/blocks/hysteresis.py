@@ -45,13 +45,16 @@ def play_sum(x, width, n_plays):
 
 
 @njit(cache=True)
-def weighted_plays(x, radii, weights):
-    """``sum_j weights[j] P_{radii[j]}[x]``, each play started at ``x[0]``."""
+def weighted_plays(x, radii, weights, start, k0):
+    """``sum_j weights[j] P_{radii[j]}[x]``, play ``j`` started at ``x[0]``, and set to
+    ``x[k0] + start radii[j]`` at sample ``k0`` (``k0 = 0``: started there)."""
     out = np.zeros_like(x)
     for j in range(radii.shape[0]):
         r = radii[j]
         p = x[0]
         for k in range(x.shape[0]):
+            if k == k0:
+                p = x[k0] + start * r
             if p < x[k] - r:
                 p = x[k] - r
             elif p > x[k] + r:
@@ -67,9 +70,21 @@ def density(shape: float, n: int = PLAYS) -> np.ndarray:
     return p / p.sum()
 
 
-def pi_operator(x, width: float, weight: float, shape: float = 0.0) -> np.ndarray:
-    """The Prandtl-Ishlinskii operator of the module docstring on ``x``."""
+def pi_operator(x, width: float, weight: float, shape: float = 0.0, start: float = 0.0,
+                from_sample: int = 0) -> np.ndarray:
+    """The Prandtl-Ishlinskii operator of the module docstring on ``x``, each play set to
+    ``x[from_sample] + start r_j`` at ``from_sample`` (``start`` in [-1, 1]: 0 centred, -1 as after
+    a long rise, 1 after a long fall: the memory a rig may hold from before a record)."""
     x = np.ascontiguousarray(x, dtype=np.float64)
     radii = max(float(width), 0.0) * np.arange(1, PLAYS + 1) / PLAYS
     a = float(weight)
-    return (1.0 - a) * x + a * weighted_plays(x, radii, density(shape))
+    return (1.0 - a) * x + a * weighted_plays(x, radii, density(shape), float(np.clip(start, -1.0, 1.0)),
+                                              int(from_sample))
+
+
+def start_shows(x, upto: int, width: float) -> bool:
+    """Whether the plays' start still shows at sample ``upto`` of ``x``: unless ``x`` has spanned
+    twice the widest half-width by then, some start in [-1, 1] has not been pushed by a border
+    (a play started at ``x0 + s r`` is pushed once ``x`` rises ``(1 + s) r`` or falls ``(1 - s) r``)."""
+    seg = np.asarray(x[: max(int(upto), 1)], float)
+    return bool(float(seg.max() - seg.min()) < 2.0 * float(width))

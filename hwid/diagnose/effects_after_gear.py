@@ -18,6 +18,8 @@ import numpy as np
 from hwid.blocks.effects import (FRICTION_FORM, HYSTERESIS_PLACE, HYSTERESIS_PLAYS, dahl_state,  # noqa: F401
                                  friction_drive, hysteresis, play_sum)
 from hwid.blocks.friction import fed_back_response
+from hwid.blocks.hysteresis import start_shows
+from hwid.diagnose.experiments import settling_time
 from hwid.diagnose.effect_base import Effect, Scale, grid
 
 
@@ -115,10 +117,32 @@ class Friction(_FrictionLaw):
     _stribeck_start = 1.0
     _damping_start = 1.0
 
+    #: a friction state's start is forgotten once the load has travelled this many pre-sliding
+    #: displacements (two starts' states then differ by e^-10 of the Coulomb level)
+    FORGOTTEN = 10.0
+
+    def on_load(self, sim, i, coulomb, pre_sliding, viscous, **law) -> np.ndarray:
+        """The model's output with the force on the load (:func:`fed_back_response`), the friction
+        state at the start from the data where the load has not travelled :attr:`FORGOTTEN`
+        pre-sliding displacements by the first scored sample (:meth:`ModelSim.memory_start`; a rig
+        left at rest after a move keeps its load held off equilibrium)."""
+        G, v, dt = sim.model.linear, sim.v[i], sim.dt
+        w = fed_back_response(G, v, dt, coulomb, pre_sliding, viscous, **law)
+        if "sliding_speed" in law or coulomb == 0.0:     # the smooth law has no state
+            return sim.model.output(w)
+        fs = max(float(law.get("stribeck", 1.0)), 1.0)
+        def restart(first):
+            return 0 if float(np.sum(np.abs(np.diff(w[:first + 1])))) < self.FORGOTTEN * pre_sliding * fs else None
+
+        mem = sim.memory_start(i, lambda z, k: fed_back_response(G, v, dt, coulomb, pre_sliding, viscous, memory=z,
+                                                                 **law), -fs, fs, restart)
+        if mem is not None:
+            w = fed_back_response(G, v, dt, coulomb, pre_sliding, viscous, memory=mem["start"], **law)
+        return sim.model.output(w)
+
     def simulate(self, sim, theta, i):
-        G = sim.model.linear
         c, xp, b = (float(t) for t in theta[:3])
-        return sim.model.output(fed_back_response(G, sim.v[i], sim.dt, c, xp, b))
+        return self.on_load(sim, i, c, xp, b)
 
 
 class SmoothFriction(Friction):
@@ -159,8 +183,7 @@ class SmoothFriction(Friction):
 
     def simulate(self, sim, theta, i):
         c, speed, b = (float(t) for t in theta)
-        return sim.model.output(fed_back_response(sim.model.linear, sim.v[i], sim.dt, c, 0.0, b,
-                                                  sliding_speed=speed))
+        return self.on_load(sim, i, c, 0.0, b, sliding_speed=speed)
 
 
 class LuGreFriction(Friction):
@@ -222,8 +245,7 @@ class LuGreFriction(Friction):
         c, xp, b = th[:3]
         fs, vs = (th[3], th[4]) if self.stribeck else (1.0, 1.0)
         d = th[-1] if self.damping else 0.0
-        return sim.model.output(fed_back_response(sim.model.linear, sim.v[i], sim.dt, c, xp, b,
-                                                  stribeck=fs, stribeck_speed=vs, bristle_damping=d))
+        return self.on_load(sim, i, c, xp, b, stribeck=fs, stribeck_speed=vs, bristle_damping=d)
 
 
 class GearFriction(_FrictionLaw):
@@ -335,11 +357,28 @@ class OutputHysteresis(Effect):
         lo, hi = self.bounds(sc)
         return grid(np.geomspace(0.01 * hi[0], hi[0], 6), [0.3, 1.0], [0.0, self.SHAPE_MAX])
 
-    def hysteresis(self, w, theta) -> np.ndarray:
-        return hysteresis(w, float(theta[0]), float(theta[1]), float(theta[2]))
+    def hysteresis(self, w, theta, start: float = 0.0, from_sample: int = 0) -> np.ndarray:
+        return hysteresis(w, float(theta[0]), float(theta[1]), float(theta[2]), start, from_sample)
+
+    def with_memory(self, sim, x, theta, i, through_h: bool) -> np.ndarray:
+        """The plays on ``x``, set where G has settled from the model's own start (one settling
+        time in, or the first scored sample if sooner) to the place that fits the data, where
+        ``x`` has not spanned the loop by the first scored sample (:func:`start_shows`,
+        :meth:`ModelSim.memory_start`). A rig holds its plays where its own history left them: the
+        model's G starts at rest at the first input, and the travel it makes settling from there
+        is not the rig's (a rig that keeps its state between records, a record whose lead-in
+        moves less than the loop: a fast sine, G's output hardly moving)."""
+        settled = int(np.ceil(settling_time(sim.model) / sim.dt))
+
+        def restart(first):
+            k = min(settled, first)
+            return k if start_shows(x[k:], first + 1 - k, float(theta[0])) else None
+
+        mem = sim.memory_start(i, lambda s, k: self.hysteresis(x, theta, s, k), -1.0, 1.0, restart, through_h)
+        return self.hysteresis(x, theta) if mem is None else self.hysteresis(x, theta, mem["start"], mem["from_sample"])
 
     def simulate(self, sim, theta, i):
-        return sim.model.output(self.hysteresis(sim.w[i], theta))
+        return sim.model.output(self.with_memory(sim, sim.w[i], theta, i, True))
 
 
 class OutputHysteresisAfterH(OutputHysteresis):
@@ -363,7 +402,7 @@ class OutputHysteresisAfterH(OutputHysteresis):
         return sc.y_width
 
     def simulate(self, sim, theta, i):
-        return self.hysteresis(sim.x[i], theta)
+        return self.with_memory(sim, sim.x[i], theta, i, False)
 
 
 def effects_after_gear() -> list[Effect]:

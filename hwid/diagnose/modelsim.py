@@ -233,6 +233,36 @@ class ModelSim:
 
         return self._search(cost, lo, hi)
 
+    def memory_start(self, i: int, predict, lo: float, hi: float, restart, through_h: bool = True) -> dict | None:
+        """The state ``s`` in [lo, hi] an effect's memory (a play's place, a friction's state) is set
+        to at sample ``k = restart(first)`` of experiment ``i`` that fits the measured output best;
+        None where ``restart`` says the memory no longer shows at the first scored sample
+        ``first`` (it returns None) or with nothing measured (:meth:`measure`).
+        ``predict(s, k)``: the signal entering h (``through_h``; else the output itself). Returns
+        and notes ``memory``, ``{"from_sample": k, "start": s}`` (:meth:`note_start`).
+
+        As :meth:`gear_start` says of the gear: a rig may hold its memory from before a call (left
+        at rest after a move, every state kept), and where the lead-in does not move far enough
+        to wipe it, one number per experiment is a nuisance parameter like the initial state
+        ``hwid compare`` estimates."""
+        scored = self._scored(i)
+        if scored is None:
+            return None
+        y, m, h, _ = scored
+        k = restart(int(np.argmax(m)))
+        if k is None:
+            return None
+        ys = y[m]
+        out = h if through_h else (lambda x: x)
+
+        def cost(s):
+            r = ys - out(predict(s, k))[m]
+            return float(r @ r)
+
+        memory = {"from_sample": int(k), "start": float(self._search(cost, lo, hi))}
+        self.note_start(i, memory=memory)
+        return memory
+
     def _search(self, cost, lo: float, hi: float) -> float:
         """The minimiser of ``cost`` over [lo, hi] (:func:`hwid.diagnose.starts.search_1d`)."""
         return search_1d(cost, lo, hi, self.NUISANCE_POINTS)
