@@ -210,3 +210,14 @@ def test_unequal_plays_are_named_output_hysteresis_with_their_loop(tmp_path_fact
     height = p["weight"] * float(density(p["shape"]) @ radii)
     assert height == pytest.approx(R.PI_HALF_HEIGHT, rel=0.1)
     _corrected_checks(s, tmp, "output_hysteresis_pi")
+
+
+def test_a_force_along_the_load_s_motion_is_not_friction():
+    """On the load, a Coulomb level whose interval is below zero drives the load along: not named;
+    the gear path's may be either sign (a load held back behind a compliant drive)."""
+    from hwid.diagnose.effects_after_gear import Friction, GearFriction, SmoothFriction
+    along = {"coulomb": [-0.2, -0.1], "pre_sliding": [0.01, 0.02], "viscous": None}
+    assert "below zero" in Friction().stands_in(along) and "below zero" in SmoothFriction().stands_in(along)
+    assert GearFriction().stands_in(along) is None
+    assert Friction().stands_in({"coulomb": [0.1, 0.2]}) is None
+    assert "holds zero" in Friction().stands_in({"coulomb": [-0.1, 0.2]})

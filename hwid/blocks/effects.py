@@ -458,13 +458,13 @@ class OutputStage:
 def scaled_for_normalisation(spec: EffectSpec, k_v: float, k_w: float) -> EffectSpec:
     """``spec`` in the units of the normalised model (eqs. 4a-c), whose F's output is ``v / k_v``
     and G's ``w / k_w``: a friction's levels (in v's units) and an output hysteresis's width before
-    h (in w's) scale; a fed-back friction's pre-sliding is in w's units and its Dahl state follows
-    w's direction, its viscous term is a force (v's units) per w's velocity; every other effect's
+    h (in w's) scale; a fed-back friction's pre-sliding is in w's units, its forces oppose the
+    motion whatever the signs, its viscous term a force (v's units) per w's velocity; every other effect's
     parameters are in u's, y's or seconds, or in units the normalisation keeps (a bend's, scaled
     by the border's own slope; a hysteresis after h, in y's)."""
     d = dict(spec.params)
-    if fed_back(spec):
-        d["coulomb"] *= np.sign(k_w) / k_v
+    if fed_back(spec):      # forces opposing the motion whatever G's sign
+        d["coulomb"] /= abs(k_v)
         for key in ("pre_sliding", "sliding_speed", "stribeck_speed"):
             if key in d:
                 d[key] /= abs(k_w)

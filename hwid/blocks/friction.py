@@ -12,7 +12,8 @@ so ``coulomb z`` rises smoothly from 0 after a reversal with the bristle stiffne
 ``coulomb / pre_sliding`` (the pre-sliding regime) and saturates at the Coulomb level after a few
 ``pre_sliding`` of travel; ``viscous dw/dt`` is linear viscous friction. Forces are in the gear's
 output units (G's input), ``pre_sliding`` in G's output units, ``viscous`` in the gear's units per
-unit of ``dw/dt`` with the sign that opposes the motion whatever G's sign (``viscous >= 0``).
+unit of ``dw/dt``; both forces with the sign that opposes the motion whatever G's sign
+(``coulomb > 0``, ``viscous >= 0``: each enters G's input times ``sgn G(0)``).
 
 The smooth Coulomb law. A regularised Coulomb force ``coulomb tanh(dw/dt / sliding_speed)``
 (Andersson, Soderberg, Bjorklund 2007, "Friction models for sliding dry, boundary and mixed
@@ -195,6 +196,7 @@ def fed_back_response(G: LinearBlock, v, dt: float, coulomb: float, pre_sliding:
     v = np.ascontiguousarray(v, dtype=float)
     if v.size == 0:
         return v.copy()
+    coulomb = float(coulomb) * (1.0 if G.dc_gain >= 0 else -1.0)      # opposing the motion
     Gv = with_viscous(G, viscous)
     start = float(v[0]) if rest is None else float(rest)
     if np.any(np.roots(Gv.den).real >= 0.0) and not np.any(np.roots(G.den).real >= 0.0):

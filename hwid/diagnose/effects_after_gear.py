@@ -1,9 +1,13 @@
 """The catalogue's effects after the gear: ``friction`` on the gear's output side, where the load is,
 and ``output_hysteresis`` between G's output and the sensor (issue 48).
 
-Each comes in two forms the fit chooses between on the fit experiments (:meth:`Effect.forms`):
-friction as a force on the load fed back to G's input (:class:`Friction`) or as the force of the
-gear's own path (:class:`GearFriction`); the hysteresis before h or after it.
+Each comes in forms the fit chooses between on the fit experiments (:meth:`Effect.forms`, the
+lowest criterion kept): friction as a force on the load fed back to G's input, with Dahl's law
+(:class:`Friction`, grown to LuGre's terms where they pay, :class:`LuGreFriction`) or the smooth
+Coulomb law (:class:`SmoothFriction`), or as the force of the gear's own path
+(:class:`GearFriction`); the hysteresis before h or after it (:class:`OutputHysteresisAfterH`).
+Where a rig's memory of the path before a record still shows, its start is a nuisance parameter
+like the gear's (:meth:`hwid.diagnose.modelsim.ModelSim.memory_start`).
 
 Both are rate-independent memories of the path a signal took, the kind of unmodelled effect real
 geared drives, friction dampers and servos carry most often, and neither is in the paper's class:
@@ -24,7 +28,7 @@ from hwid.diagnose.effect_base import Effect, Scale, grid
 
 
 class _FrictionLaw(Effect):
-    """What both friction forms share: the Coulomb level is what makes the fit a friction."""
+    """What every friction form shares: the Coulomb level is what makes the fit a friction."""
 
     def log_params(self):
         return (False, True, False)
@@ -46,20 +50,21 @@ class _FrictionLaw(Effect):
 class Friction(_FrictionLaw):
     """A friction force on the load, opposing the load's motion and fed back to G's input: G receives
     ``v - coulomb z(w) - viscous dw/dt``, ``w`` G's output (the load's position), ``z`` the Dahl
-    state of its path (:mod:`hwid.blocks.friction`, which says why Dahl's law and not LuGre's).
+    state of its path (:mod:`hwid.blocks.friction`, which gives the law and its references).
 
     Placement. In a geared drive the gear pushes the load and the load's dynamics are G: the
     friction acts where the load moves, so it depends on G's output and acts on G's input (in
     the gear's units: the force over the drive's stiffness). A law driven by the gear's own
     output (:class:`GearFriction`) never sees the load lag behind the gear or stop short of it,
     which is what a friction between the load and the frame does. ``coulomb > 0`` opposes the
-    motion (the physical sign; its interval decides whether a friction is there at all,
-    :meth:`stands_in`), ``viscous >= 0`` likewise.
+    motion whatever G's sign (its interval decides whether a friction is there at all: one
+    below zero drives the load along, no friction, :meth:`stands_in`), ``viscous >= 0`` likewise.
 
-    The catalogue's ``friction`` is this form and :class:`GearFriction`: both are fitted and the
-    one that fits the fit experiments better is kept (:meth:`forms`). A force read at the driven
-    shaft of a displacement-driven damper is the gear's form (the damper's motion is imposed, the
-    force adds to the reading)."""
+    The catalogue's ``friction`` is this form, :class:`SmoothFriction` and :class:`GearFriction`:
+    each is fitted and the one of the lowest criterion on the fit experiments is kept
+    (:meth:`forms`). A force read at the driven shaft of a displacement-driven damper is the
+    gear's form (the damper's motion is imposed, the force adds to the reading): the real
+    damper's log keeps it (Coulomb 3.15 [1.66, 4.65], as before the load's forms existed)."""
 
     def __init__(self):
         super().__init__("friction", "linear", ("coulomb", "pre_sliding", "viscous"),
@@ -80,6 +85,15 @@ class Friction(_FrictionLaw):
 
     def form_params(self) -> dict:
         return {FRICTION_FORM: 1.0}
+
+    def stands_in(self, intervals: dict | None) -> str | None:
+        """:class:`_FrictionLaw`'s rule, and a Coulomb level below zero (a force along the load's
+        motion) is no friction either."""
+        iv = (intervals or {}).get("coulomb")
+        if iv is not None and iv[1] < 0.0:
+            return (f"its Coulomb level's 95 % interval [{iv[0]:.3g}, {iv[1]:.3g}] is below zero: a force that "
+                    "drives the load along its motion is not friction")
+        return super().stands_in(intervals)
 
     spec_params = form_params
 
