@@ -47,6 +47,8 @@ the friction acts on the load at once.
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from numba import njit
 
@@ -179,6 +181,12 @@ def with_viscous(G: LinearBlock, viscous: float) -> LinearBlock:
     return LinearBlock(tuple(num), tuple(den), 0.0)
 
 
+@lru_cache(maxsize=1024)
+def _made_unstable(den: tuple, den_viscous: tuple) -> bool:
+    """Whether the viscous feedback puts a pole of a stable G in the closed right half-plane."""
+    return bool(np.any(np.roots(den_viscous).real >= 0.0) and not np.any(np.roots(den).real >= 0.0))
+
+
 def fed_back_response(G: LinearBlock, v, dt: float, coulomb: float, pre_sliding: float, viscous: float,
                       rest: float | None = None, sliding_speed: float | None = None, stribeck: float = 1.0,
                       stribeck_speed: float = 1.0, bristle_damping: float = 0.0, memory: float = 0.0) -> np.ndarray:
@@ -199,7 +207,7 @@ def fed_back_response(G: LinearBlock, v, dt: float, coulomb: float, pre_sliding:
     coulomb = float(coulomb) * (1.0 if G.dc_gain >= 0 else -1.0)      # opposing the motion
     Gv = with_viscous(G, viscous)
     start = float(v[0]) if rest is None else float(rest)
-    if np.any(np.roots(Gv.den).real >= 0.0) and not np.any(np.roots(G.den).real >= 0.0):
+    if _made_unstable(tuple(map(float, G.den)), tuple(map(float, Gv.den))):
         return np.full(v.size, 1e6 * (1.0 + float(np.max(np.abs(v)))))
     key = (tuple(map(float, Gv.num)), tuple(map(float, Gv.den)), float(G.delay), float(dt))
     n, lag, frac, Phi, G1, G0, C, D = discretise(*key)

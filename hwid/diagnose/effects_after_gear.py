@@ -17,12 +17,15 @@ like the other nine, its bounds and starting points scaled from the experiments 
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from hwid.blocks.effects import (FRICTION_FORM, HYSTERESIS_PLACE, HYSTERESIS_PLAYS, dahl_state,  # noqa: F401
                                  friction_drive, hysteresis, play_sum)
 from hwid.blocks.friction import fed_back_response
 from hwid.blocks.hysteresis import start_shows
+from hwid.blocks.linear import LinearBlock
 from hwid.diagnose.experiments import settling_time
 from hwid.diagnose.effect_base import Effect, Scale, grid
 
@@ -148,8 +151,9 @@ class Friction(_FrictionLaw):
         def restart(first):
             return 0 if float(np.sum(np.abs(np.diff(w[:first + 1])))) < self.FORGOTTEN * pre_sliding * fs else None
 
+        reach = 2.0 * abs(coulomb) * fs * peak_gain(G)
         mem = sim.memory_start(i, lambda z, k: fed_back_response(G, v, dt, coulomb, pre_sliding, viscous, memory=z,
-                                                                 **law), -fs, fs, restart)
+                                                                 **law), -fs, fs, restart, reach=reach, base=w)
         if mem is not None:
             w = fed_back_response(G, v, dt, coulomb, pre_sliding, viscous, memory=mem["start"], **law)
         return sim.model.output(w)
@@ -388,7 +392,8 @@ class OutputHysteresis(Effect):
             k = min(settled, first)
             return k if start_shows(x[k:], first + 1 - k, float(theta[0])) else None
 
-        mem = sim.memory_start(i, lambda s, k: self.hysteresis(x, theta, s, k), -1.0, 1.0, restart, through_h)
+        mem = sim.memory_start(i, lambda s, k: self.hysteresis(x, theta, s, k), -1.0, 1.0, restart, through_h,
+                               reach=2.0 * abs(float(theta[0])) * float(theta[1]), base=x)
         return self.hysteresis(x, theta) if mem is None else self.hysteresis(x, theta, mem["start"], mem["from_sample"])
 
     def simulate(self, sim, theta, i):
@@ -417,6 +422,20 @@ class OutputHysteresisAfterH(OutputHysteresis):
 
     def simulate(self, sim, theta, i):
         return self.with_memory(sim, sim.x[i], theta, i, False)
+
+
+def peak_gain(G) -> float:
+    """The largest ``|G(j omega)|`` (on 200 frequencies across G's poles' range, and at 0): what a
+    force at G's input moves its output by at most."""
+    return _peak_gain(tuple(map(float, G.num)), tuple(map(float, G.den)))
+
+
+@lru_cache(maxsize=256)
+def _peak_gain(num, den) -> float:
+    G = LinearBlock(num, den)
+    p = np.abs(G.poles())
+    lo, hi = (float(np.min(p[p > 0])) / 100, float(np.max(p)) * 100) if np.any(p > 0) else (1e-3, 1e3)
+    return float(max(abs(G.dc_gain), np.max(np.abs(G.freqresp(np.geomspace(lo, hi, 200))))))
 
 
 def effects_after_gear() -> list[Effect]:
