@@ -141,23 +141,83 @@ class SensorSaturationCfg(_Effect):
         return self
 
 
+def _either(value: float, what: str) -> None:
+    if value not in (0.0, 1.0):
+        raise ValueError(f"{what} is 0 or 1 (got {value})")
+
+
 class FrictionCfg(_Effect):
     effect: Literal["friction"] = Field(
-        description="A Dahl friction force on the gear's output side: G receives v + coulomb z(v) + viscous dv/dt, "
-                    "z the Dahl state of v's path (in [-1, 1]).")
+        description="A Dahl friction force on the gear's output side. fed_back 1: a force on the load, opposing "
+                    "its motion: G receives v - coulomb z(w) - viscous dw/dt, z the Dahl state of the path of G's "
+                    "output w (the load's position). fed_back 0: the force of the gear's own path: G receives "
+                    "v + coulomb z(v) + viscous dv/dt, z the Dahl state of v's path (in [-1, 1]).")
     coulomb: Finite = Field(
-        description="friction: the Coulomb level in F's output units (> 0 adds to the output in the direction of "
-                    "motion, < 0 holds the load back).")
-    pre_sliding: Pos = Field(description="friction: the pre-sliding displacement (Dahl's), F's output units.")
-    viscous: Finite = Field(default=0.0, description="friction: the viscous term, s (a zero of G at -1/viscous).")
+        description="friction: the Coulomb level in F's output units (fed_back 1: > 0 opposes the load's motion; "
+                    "fed_back 0: > 0 adds to the output in the direction of motion, < 0 holds the load back).")
+    pre_sliding: Optional[Pos] = Field(
+        default=None, description="friction: the pre-sliding displacement (Dahl's law), in G's output units "
+                                  "(fed_back 1) or F's (fed_back 0).")
+    sliding_speed: Optional[Pos] = Field(
+        default=None, description="friction, fed_back 1 only: the smooth Coulomb law coulomb tanh(dw/dt / "
+                                  "sliding_speed) in place of Dahl's, in G's output units per s (give it or "
+                                  "pre_sliding).")
+    viscous: Finite = Field(default=0.0, description="friction: the viscous term (fed_back 1: F's output units per "
+                                                     "unit of G's output velocity, >= 0, opposing the motion; "
+                                                     "fed_back 0: s, a zero of G at -1/viscous).")
+    stribeck: Optional[Annotated[float, Field(ge=1, allow_inf_nan=False)]] = Field(
+        default=None, description="friction, fed_back 1 with pre_sliding only: LuGre's Stribeck level at rest, in "
+                                  "Coulomb levels (>= 1; left out: Dahl's law, 1).")
+    stribeck_speed: Optional[Pos] = Field(
+        default=None, description="friction: the speed over which the Stribeck level falls to the Coulomb level, in "
+                                  "G's output units per s (given with stribeck).")
+    bristle_damping: Optional[Pos] = Field(
+        default=None, description="friction, fed_back 1 with pre_sliding only: LuGre's bristle damping sigma1/sigma0, "
+                                  "s: the force coulomb (z + bristle_damping dz/dt) (left out: none).")
+    fed_back: Share = Field(default=0.0, description="friction: 1 for the force on the load fed back to G's input, "
+                                                     "0 for the force of the gear's own path (the default).")
+
+    @model_validator(mode="after")
+    def _form(self):
+        _either(self.fed_back, "friction fed_back")
+        if (self.pre_sliding is None) == (self.sliding_speed is None):
+            raise ValueError("friction: give pre_sliding (Dahl's law) or sliding_speed (the smooth Coulomb law), "
+                             "one of them")
+        if (self.stribeck is None) != (self.stribeck_speed is None):
+            raise ValueError("friction: give stribeck and stribeck_speed together")
+        if self.stribeck is not None and (self.fed_back != 1.0 or self.pre_sliding is None):
+            raise ValueError("friction: a Stribeck level is LuGre's, of the load's velocity with Dahl's pre-sliding: "
+                             "fed_back 1 and pre_sliding only")
+        if self.bristle_damping is not None and (self.fed_back != 1.0 or self.pre_sliding is None):
+            raise ValueError("friction: bristle damping is LuGre's, of the load's Dahl state: fed_back 1 and "
+                             "pre_sliding only")
+        if self.sliding_speed is not None and self.fed_back != 1.0:
+            raise ValueError("friction: sliding_speed (the smooth Coulomb law) is a law of the load's velocity: "
+                             "fed_back 1 only")
+        if self.fed_back == 1.0 and self.viscous < 0:
+            raise ValueError(f"friction viscous: a viscous force on the load opposes its motion (>= 0, got "
+                             f"{self.viscous})")
+        return self
 
 
 class OutputHysteresisCfg(_Effect):
     effect: Literal["output_hysteresis"] = Field(
-        description="A rate-independent hysteresis between G's output and h: (1 - weight) w + weight P(w), P a "
-                    "Prandtl-Ishlinskii sum of 4 plays of half-widths width/4 .. width.")
-    width: NonNeg = Field(description="output_hysteresis: the largest play's half-width, in G's output units.")
-    weight: Share = Field(default=1.0, description="output_hysteresis: in [0, 1], the share of w through the plays.")
+        description="A rate-independent hysteresis between G's output w and h (after_h 0) or on h's output "
+                    "(after_h 1): (1 - weight) x + weight P(x), P a Prandtl-Ishlinskii sum of 4 plays of "
+                    "half-widths width/4 .. width, the j-th weighted in proportion to exp(shape (j - 4) / 4).")
+    width: NonNeg = Field(description="output_hysteresis: the largest play's half-width, in the units of the "
+                                      "signal it acts on (G's output before h, the output after it).")
+    weight: Share = Field(default=1.0, description="output_hysteresis: in [0, 1], the share through the plays.")
+    shape: Annotated[float, Field(ge=-60, le=60, allow_inf_nan=False)] = Field(
+        default=0.0, description="output_hysteresis: the tilt of the plays' weights (0: equal; large: the widest "
+                                 "play alone; negative: the narrow plays).")
+    after_h: Share = Field(default=0.0, description="output_hysteresis: 1 after h, 0 between G and h (the "
+                                                    "default).")
+
+    @model_validator(mode="after")
+    def _place(self):
+        _either(self.after_h, "output_hysteresis after_h")
+        return self
 
 
 EffectCfg = Annotated[

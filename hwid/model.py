@@ -243,7 +243,8 @@ class HWModel:
 
     def simulate(self, u, dt: float, gear: float | None = None, rest: float | None = None,
                  noise_rng: np.random.Generator | None = None, noise_std: float = 0.0,
-                 position: float | None = None, ringing: dict | None = None) -> Signals:
+                 position: float | None = None, ringing: dict | None = None,
+                 memory: dict | None = None) -> Signals:
         """The chain of eqs. (3a-c) on a sampled input, behind the actuator where the model has one
         (``u`` through :meth:`Actuator.apply` first, its slew from ``position``): ``v = F[u]`` from the gear state
         ``gear`` (None: the operator's default start at ``u[0]``), ``w`` the exact ZOH response of
@@ -257,9 +258,12 @@ class HWModel:
         through every effect; ``position`` is also where a rate limit that carries its position
         over starts). ``ringing``: a free response of G's modes from a given sample on, added to G's
         output (a record started with a mode still ringing, :func:`hwid.blocks.effects.with_ringing`).
+        ``memory``: where a friction on the load or an output hysteresis starts its state
+        (``{"from_sample", "start"}``: a record started with the rig's memory held from before;
+        None: their defaults).
         """
         if self.effects or ringing:
-            return self._with_effects(u, dt, gear, rest, noise_rng, noise_std, position, ringing)
+            return self._with_effects(u, dt, gear, rest, noise_rng, noise_std, position, ringing, memory)
         u = self.actuate(u, dt, position)
         fused = self._fused(u, dt, gear, rest, noise_rng, float(noise_std))
         if fused is not None:
@@ -276,11 +280,11 @@ class HWModel:
         u = self.actuate(u, dt)
         return at_the_gear(self.input, self.effects, u, dt) if self.effects else (self.input, u)
 
-    def _with_effects(self, u, dt, gear, rest, noise_rng, noise_std, position, ringing) -> Signals:
+    def _with_effects(self, u, dt, gear, rest, noise_rng, noise_std, position, ringing, memory=None) -> Signals:
         """:meth:`simulate` with the model's effects (the three-pass chain, never the fused one)."""
         u = self.actuate(u, dt, position if self.actuator is not None else None)
         v, w, x = run_chain_with_effects(self.input, self.linear, self.output, self.effects, u, dt, gear, rest,
-                                         position, ringing)
+                                         position, ringing, memory)
         y = None if noise_rng is None else x + noise_std * noise_rng.standard_normal(u.size)
         return Signals(v, w, x, float(v[-1]) if v.size else gear, y)
 

@@ -486,6 +486,82 @@ def output_hysteresis(u, dt):
     return out - 0.1 * out ** 3 + r.noise(u.size)
 
 
+TRUTH["friction_on_load"] = {"coulomb": 0.08, "pre_sliding": 0.02, "viscous": 0.1}
+#: a Prandtl-Ishlinskii operator of three unequal plays beside a linear part, between G and h
+PI_PLAYS = {"radii": (0.05, 0.12, 0.2), "weights": (0.2, 0.3, 0.5), "through_plays": 0.6}
+#: the operator's loop half-height on a move far beyond its widest play: sum(weights * radii) * share
+PI_HALF_HEIGHT = PI_PLAYS["through_plays"] * sum(r * p for r, p in zip(PI_PLAYS["radii"], PI_PLAYS["weights"]))
+#: substeps of the friction rig's integration per sample
+SUBSTEPS = 40
+
+
+def friction_on_load(u, dt):
+    """The base plant with a Dahl friction force on the load, fed back: G's input is
+    ``v - coulomb z - viscous dw/dt``, ``w`` G's output (the load's position), ``dz/dw = (1 - z sgn
+    dw) / pre_sliding``. Integrated over :data:`SUBSTEPS` substeps per sample (G's state exact over
+    each substep for the force held there, the force from the substep's start), everything carried
+    over between calls."""
+    t = TRUTH["friction_on_load"]
+    r = _rig("friction_on_load")
+    u = np.asarray(u, float)
+    v = r.gear_out(u, 0.3)
+    h = dt / SUBSTEPS
+    A = np.array([[-3.0, -2.0], [1.0, 0.0]])
+    B = np.array([1.0, 0.0])
+    C = np.array([0.0, 2.0])
+    Ad, Bd = _expm_pair(A, B, h)
+    x = getattr(r, "x", None)
+    if x is None:
+        x = np.linalg.solve(A, -B) * v[0]
+    z = getattr(r, "z", 0.0)
+    out = np.empty_like(v)
+    for k, vk in enumerate(v):
+        out[k] = C @ x
+        for _ in range(SUBSTEPS):
+            w0 = C @ x
+            wdot = C @ (A @ x)          # C B = 0: the velocity does not depend on the force
+            x = Ad @ x + Bd * (vk - t["coulomb"] * z - t["viscous"] * wdot)
+            dw = C @ x - w0
+            if dw != 0.0:
+                sg = 1.0 if dw > 0 else -1.0
+                z = sg + (z - sg) * math.exp(-abs(dw) / t["pre_sliding"])
+    r.x, r.z = x, z
+    return out - 0.1 * out ** 3 + r.noise(u.size)
+
+
+def _expm_pair(A, B, h):
+    from scipy.linalg import expm
+    n = A.shape[0]
+    M = np.zeros((n + 1, n + 1))
+    M[:n, :n], M[:n, n] = A, B
+    E = expm(M * h)
+    return E[:n, :n], E[:n, n]
+
+
+def output_hysteresis_pi(u, dt):
+    """The base plant with :data:`PI_PLAYS` between G and h: three plays of unequal weights beside
+    a linear part; plays and G carried over."""
+    r = _rig("output_hysteresis_pi")
+    u = np.asarray(u, float)
+    v = r.gear_out(u, 0.3)
+    b, a = _zoh(dt)
+    zi = getattr(r, "zi", None)
+    if zi is None:
+        zi = signal.lfiltic(b, a, y=[v[0]] * (len(a) - 1), x=[v[0]] * (len(b) - 1))
+    w, r.zi = signal.lfilter(b, a, v, zi=zi)
+    plays = getattr(r, "plays", None) or [float(w[0])] * 3
+    share = PI_PLAYS["through_plays"]
+    out = np.empty_like(w)
+    for k, wk in enumerate(w):
+        acc = 0.0
+        for j, (rad, p) in enumerate(zip(PI_PLAYS["radii"], PI_PLAYS["weights"])):
+            plays[j] = min(max(plays[j], wk - rad), wk + rad)
+            acc += p * plays[j]
+        out[k] = (1 - share) * wk + share * acc
+    r.plays = plays
+    return out - 0.1 * out ** 3 + r.noise(u.size)
+
+
 # ------------------------------------------------------------------ a plant that changes once (issue 47)
 
 #: the gain step of :func:`gain_step`: G's gain times ``factor`` from call ``after_calls`` on (0-based)

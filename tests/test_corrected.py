@@ -23,6 +23,7 @@ from hwid.compare import compare
 from hwid.diagnose import diagnose
 from hwid.diagnose.effect_base import Scale
 from hwid.diagnose.effects import catalogue
+from hwid.diagnose.effects_after_gear import form_theta
 from hwid.diagnose.modelsim import ModelSim
 from hwid.diagnose.sim_side import model_from_yaml
 from hwid.model import from_config
@@ -94,9 +95,11 @@ def test_each_effect_in_a_model_is_the_diagnosis_s_own(effect):
     u = np.r_[np.zeros(50), 1.1 * np.sin(0.6 * t) + 0.2 * np.sign(np.sin(2.1 * t))]
     plain = from_config(config.parse_plant(R.BASE, "test"))
     eff = catalogue(Scale(DT, -1.0, 1.0, -1.0, 1.0, 1.0, 4.0, 1.0, 40.0, u_fit_min=-0.8, u_fit_max=0.8))[effect]
+    theta = model.effects[0].theta()
     if effect == "curved_borders":
         eff = eff._like(2, play=True)
-    theta = model.effects[0].theta()
+    elif effect in ("friction", "output_hysteresis"):       # the form the spec is
+        eff, theta = form_theta(model.effects[0])
     want = eff.simulate(ModelSim(plain, DT, [u]), theta, 0)
     got = model.simulate(u, DT).x
     assert np.all(np.isfinite(got))
@@ -181,7 +184,7 @@ def test_corrected_model_reproduces_the_diagnosis_s_after_prediction(effect, tmp
         st = e["start_after"]
         assert st["exact"], e
         x = model.simulate(e["u"], e["dt"], gear=st["gear"], rest=st["rest"], position=st["position"],
-                           ringing=st["ringing"]).x
+                           ringing=st["ringing"], memory=st.get("memory")).x
         assert np.max(np.abs(x - e["y_after"])) < 1e-9
 
 
@@ -220,7 +223,7 @@ def _round_trip_error(out) -> float:
         st = e["start_after"]
         assert st["exact"], e["start_after"]
         x = model.simulate(e["u"], e["dt"], gear=st["gear"], rest=st["rest"], position=st["position"],
-                           ringing=st["ringing"]).x
+                           ringing=st["ringing"], memory=st.get("memory")).x
         worst = max(worst, float(np.max(np.abs(x - e["y_after"]))))
     return worst
 

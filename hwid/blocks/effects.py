@@ -10,7 +10,10 @@ The chain with effects, each at its block and, within a block, in the order give
 
     u -> [input_saturation, rate_limit, input_deadzone] -> F (curved_borders) -> [friction]
       -> G (time_delay, resonance, sensor_lag's absorbed share) -> [output_hysteresis] -> h
-      -> [sensor_lag, sensor_saturation] -> y
+      -> [output_hysteresis after h, sensor_lag, sensor_saturation] -> y
+
+A friction on the load (``fed_back`` 1) is not a stage before G but a feedback around it: G is
+stepped with the force of its own output's motion (:mod:`hwid.blocks.friction`).
 
 ``drift`` is a disturbance estimated from a plant's measured output, not a map of the input: it has
 no place here.
@@ -23,6 +26,8 @@ import numpy as np
 from numba import njit
 
 from hwid.blocks.deadzone import deadzone
+from hwid.blocks.friction import fed_back_response
+from hwid.blocks.hysteresis import PLAYS, pi_operator, play_sum  # noqa: F401  (play_sum: the effects' primitives)
 from hwid.blocks.linear import LinearBlock
 from hwid.blocks.slew import slewed
 
@@ -35,15 +40,20 @@ PARAMS = {
     "curved_borders": ("input", ("c0",)),
     "time_delay": ("linear", ("delay_s",)),
     "resonance": ("linear", ("omega_n", "zeta")),
-    "friction": ("linear", ("coulomb", "pre_sliding", "viscous")),
+    "friction": ("linear", ("coulomb", "pre_sliding", "viscous")),     # and its form, FRICTION_FORM
     "sensor_lag": ("output", ("tau_s", "absorbed")),
     "sensor_saturation": ("output", ("y_lo", "y_hi")),
-    "output_hysteresis": ("output", ("width", "weight")),
+    "output_hysteresis": ("output", ("width", "weight", "shape")),   # and its place, HYSTERESIS_PLACE
 }
 
-#: The plays summed by ``output_hysteresis`` (:func:`play_sum`); with 4 the loop's branches are
-#: within 1/16 of the width of the smooth uniform-density limit.
-HYSTERESIS_PLAYS = 4
+#: ``friction``'s form beside its fitted parameters: 1 for the force on the load fed back
+#: (:func:`hwid.blocks.friction.fed_back_response`), 0 for the force of the gear's own path added
+#: to G's input (:func:`friction_drive`); left out, 0
+FRICTION_FORM = "fed_back"
+#: ``output_hysteresis``'s place beside its fitted parameters: 1 after h, 0 before h (left out, 0)
+HYSTERESIS_PLACE = "after_h"
+#: the plays of ``output_hysteresis`` (:mod:`hwid.blocks.hysteresis`)
+HYSTERESIS_PLAYS = PLAYS
 
 
 # ------------------------------------------------------------------------------ signal primitives
@@ -119,23 +129,6 @@ def dahl_state(x, x_pre):
     return out
 
 
-@njit(cache=True)
-def play_sum(x, width, n_plays):
-    """The mean of ``n_plays`` play operators of half-widths ``width k / n_plays`` (k = 1..n) on
-    ``x``, each started at ``x[0]``: a Prandtl-Ishlinskii operator of uniform threshold density."""
-    out = np.zeros_like(x)
-    for j in range(1, n_plays + 1):
-        r = width * j / n_plays
-        p = x[0]
-        for k in range(x.shape[0]):
-            if p < x[k] - r:
-                p = x[k] - r
-            elif p > x[k] + r:
-                p = x[k] + r
-            out[k] += p
-    return out / n_plays
-
-
 # ------------------------------------------------------------------------------ each effect's map
 
 def deadzone_borders(F, delta: float, absorbed: float):
@@ -190,12 +183,31 @@ def friction_drive(v, coulomb: float, pre_sliding: float, viscous: float, dt: fl
     return out
 
 
-def hysteresis(w, width: float, weight: float) -> np.ndarray:
-    """``(1 - weight) w + weight P(w)``, ``P`` the Prandtl-Ishlinskii sum of
-    :data:`HYSTERESIS_PLAYS` plays of largest half-width ``width`` (:func:`play_sum`)."""
-    a = float(weight)
-    w = np.ascontiguousarray(w, dtype=np.float64)
-    return (1.0 - a) * w + a * play_sum(w, max(float(width), 0.0), HYSTERESIS_PLAYS)
+def hysteresis(w, width: float, weight: float, shape: float = 0.0, start: float = 0.0,
+               from_sample: int = 0) -> np.ndarray:
+    """``(1 - weight) w + weight P(w)``, ``P`` the Prandtl-Ishlinskii sum of :data:`HYSTERESIS_PLAYS`
+    plays of largest half-width ``width`` and threshold density tilted by ``shape``
+    (:func:`hwid.blocks.hysteresis.pi_operator`), the plays set to ``start`` (in [-1, 1]) at
+    ``from_sample``."""
+    return pi_operator(w, width, weight, shape, start, from_sample)
+
+
+def hysteresis_of(spec: "EffectSpec", x, memory: dict | None = None) -> np.ndarray:
+    """An ``output_hysteresis`` spec's operator on ``x``, its plays set at ``memory``
+    (``{"from_sample", "start"}``; None: centred at the first sample)."""
+    m = memory or {}
+    return hysteresis(x, spec.get("width"), spec.get("weight", 1.0), spec.get("shape", 0.0),
+                      float(m.get("start", 0.0)), int(m.get("from_sample", 0)))
+
+
+def after_h(spec: "EffectSpec") -> bool:
+    """Whether an ``output_hysteresis`` acts after h (:data:`HYSTERESIS_PLACE`)."""
+    return spec.effect == "output_hysteresis" and spec.get(HYSTERESIS_PLACE, 0.0) >= 0.5
+
+
+def fed_back(spec: "EffectSpec") -> bool:
+    """Whether a ``friction`` is the force on the load fed back (:data:`FRICTION_FORM`)."""
+    return spec.effect == "friction" and spec.get(FRICTION_FORM, 0.0) >= 0.5
 
 
 def curve_params(degree: int, play: bool = False) -> tuple[str, ...]:
@@ -358,9 +370,11 @@ def effective_blocks(F, G: LinearBlock, specs):
     return F, G
 
 
-def _after_input(F, G, h, specs, u, dt, gear, rest, ringing=None):
+def _after_input(F, G, h, specs, u, dt, gear, rest, ringing=None, memory=None):
     """``(v, w, x)`` of the chain after the input effects, on the actuator's output ``u`` (G's
-    output with a ringing start added, :func:`with_ringing`)."""
+    output with a ringing start added, :func:`with_ringing`; a friction on the load or the plays
+    of an output hysteresis started from ``memory``, ``{"from_sample", "start"}``, None: their
+    defaults)."""
     curve = next((s for s in specs if s.effect == "curved_borders"), None)
     if curve is not None:
         d = dict(curve.params)
@@ -372,39 +386,42 @@ def _after_input(F, G, h, specs, u, dt, gear, rest, ringing=None):
     else:
         v = F.apply(u, gear)
     drive = v
+    load = None
     for s in specs:
-        if s.effect == "friction":
+        if fed_back(s):
+            load = s
+        elif s.effect == "friction":
             drive = friction_drive(drive, s.get("coulomb"), s.get("pre_sliding"), s.get("viscous", 0.0), dt)
-    w = with_ringing(G.simulate(drive, dt, rest), dt, ringing)
-    wh = w
-    for s in specs:
-        if s.effect == "output_hysteresis":
-            wh = hysteresis(wh, s.get("width"), s.get("weight", 1.0))
-    x = h(wh)
-    for s in specs:
-        if s.effect == "sensor_lag":
-            x = first_order(x, s.get("tau_s"), dt)
-        elif s.effect == "sensor_saturation":
-            x = np.clip(x, s.get("y_lo"), s.get("y_hi"))
-    return v, w, x
+    if load is None:
+        w = G.simulate(drive, dt, rest)
+    else:
+        w = fed_back_response(G, drive, dt, load.get("coulomb"), load.get("pre_sliding", 0.0),
+                              load.get("viscous", 0.0), rest, load.get("sliding_speed"), load.get("stribeck", 1.0),
+                              load.get("stribeck_speed", 1.0), load.get("bristle_damping", 0.0),
+                              (memory or {}).get("start", 0.0))
+    w = with_ringing(w, dt, ringing)
+    return v, w, OutputStage(h, specs, dt, memory)(w)
 
 
 def run_chain_with_effects(F, G: LinearBlock, h, specs, u, dt: float, gear: float | None = None,
-                           rest: float | None = None, position: float | None = None, ringing: dict | None = None):
+                           rest: float | None = None, position: float | None = None, ringing: dict | None = None,
+                           memory: dict | None = None):
     """The chain of eqs. (3a-c) with the effects ``specs`` at their blocks on the command ``u``:
     ``(v, w, x)``, ``v`` F's output (the gear), ``w`` G's output (before an output hysteresis),
     ``x`` the noise-free output. ``gear``, ``rest``: F's and G's starts as in
     :meth:`hwid.model.HWModel.simulate`; ``position``: where a rate limit that carries its position
     over (``carried`` > 0) starts its slew (None: at ``u[0]``, as a fresh call), its output then
-    ``x_fresh + carried (x_carried - x_fresh)``."""
+    ``x_fresh + carried (x_carried - x_fresh)``; ``memory``: where a friction on the load or an
+    output hysteresis starts its state, ``{"from_sample", "start"}`` (the friction's from the
+    first sample; None: no friction force, the plays centred)."""
     specs = tuple(specs)
     F, G = effective_blocks(F, G, specs)
     fresh, carried, share = _input_stage(specs, np.ascontiguousarray(u, float), dt, position)
     if carried is not None and share >= 1.0:       # the carried actuator alone
-        return _after_input(F, G, h, specs, carried, dt, gear, rest, ringing)
-    v, w, x = _after_input(F, G, h, specs, fresh, dt, gear, rest, ringing)
+        return _after_input(F, G, h, specs, carried, dt, gear, rest, ringing, memory)
+    v, w, x = _after_input(F, G, h, specs, fresh, dt, gear, rest, ringing, memory)
     if carried is not None:
-        _, _, xc = _after_input(F, G, h, specs, carried, dt, gear, rest, ringing)
+        _, _, xc = _after_input(F, G, h, specs, carried, dt, gear, rest, ringing, memory)
         x = x + share * (xc - x)
     return v, w, x
 
@@ -418,14 +435,20 @@ class OutputStage:
     h: object
     specs: tuple
     dt: float
+    memory: dict | None = None      # where an output hysteresis's plays start (None: centred)
+
+    def __post_init__(self):
+        object.__setattr__(self, "specs", tuple(self.specs))
 
     def __call__(self, w):
         for s in self.specs:
-            if s.effect == "output_hysteresis":
-                w = hysteresis(w, s.get("width"), s.get("weight", 1.0))
+            if s.effect == "output_hysteresis" and not after_h(s):
+                w = hysteresis_of(s, w, self.memory)
         x = self.h(w)
         for s in self.specs:
-            if s.effect == "sensor_lag":
+            if after_h(s):
+                x = hysteresis_of(s, x, self.memory)
+            elif s.effect == "sensor_lag":
                 x = first_order(x, s.get("tau_s"), self.dt)
             elif s.effect == "sensor_saturation":
                 x = np.clip(x, s.get("y_lo"), s.get("y_hi"))
@@ -434,13 +457,21 @@ class OutputStage:
 
 def scaled_for_normalisation(spec: EffectSpec, k_v: float, k_w: float) -> EffectSpec:
     """``spec`` in the units of the normalised model (eqs. 4a-c), whose F's output is ``v / k_v``
-    and G's ``w / k_w``: a friction's levels (in v's units) and an output hysteresis's width (in
-    w's) scale; every other effect's parameters are in u's, y's or seconds, or in units the
-    normalisation keeps (a bend's, scaled by the border's own slope)."""
+    and G's ``w / k_w``: a friction's levels (in v's units) and an output hysteresis's width before
+    h (in w's) scale; a fed-back friction's pre-sliding is in w's units, its forces oppose the
+    motion whatever the signs, its viscous term a force (v's units) per w's velocity; every other effect's
+    parameters are in u's, y's or seconds, or in units the normalisation keeps (a bend's, scaled
+    by the border's own slope; a hysteresis after h, in y's)."""
     d = dict(spec.params)
-    if spec.effect == "friction":
+    if fed_back(spec):      # forces opposing the motion whatever G's sign
+        d["coulomb"] /= abs(k_v)
+        for key in ("pre_sliding", "sliding_speed", "stribeck_speed"):
+            if key in d:
+                d[key] /= abs(k_w)
+        d["viscous"] = d.get("viscous", 0.0) * abs(k_w / k_v)
+    elif spec.effect == "friction":
         d["coulomb"] /= k_v
         d["pre_sliding"] /= abs(k_v)
-    elif spec.effect == "output_hysteresis":
+    elif spec.effect == "output_hysteresis" and not after_h(spec):
         d["width"] /= abs(k_w)
     return EffectSpec(spec.effect, tuple(d.items()))

@@ -16,6 +16,7 @@ from hwid.diagnose import confirm, corrected, findings, gap, mode_or_delay, rank
 from hwid.diagnose.baseline import has_outside_modes
 from hwid.diagnose.context import Context, Validation, sine_band
 from hwid.diagnose.effects import CATALOGUE, catalogue
+from hwid.diagnose.fit_all import fit_all
 from hwid.diagnose.floor_lines import verdict_with_lines
 from hwid.diagnose.log_drift import (drift_from_residual, drift_leaves_little, drift_takes_the_excess,
                                      input_predicts_it, repeats_under_best)
@@ -490,7 +491,7 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
         if unknown:
             raise HwidError(f"unknown effect(s) {', '.join(unknown)}; the catalogue is {', '.join(CATALOGUE)}")
         available = {k: v for k, v in available.items() if k in effects}
-    cands = rank.fit_all(fitter, available, echo=echo)
+    cands = fit_all(fitter, available, echo=echo)
     free, *without = fitter.best_effect_free(cands)
     if identified and has_outside_modes(sim_model.linear, fitter.band):
         alternative = rank.EffectFitter(val.sim_fit, fitter.yf, fitter.mf, val.sim_val, val.y_val, val.m_val,
@@ -503,7 +504,7 @@ def fit_effects(fitter, sim_model, val: Validation, floor, gap_ref, test, n_val,
         if alternative.gap_ref < gap_ref:
             gap_ref = alternative.gap_ref
             test = gap.gap_test(gap_ref, n_val, floor, min_ratio=ID_MIN_RATIO)
-        other = rank.fit_all(alternative, available, echo=echo)
+        other = fit_all(alternative, available, echo=echo)
         for c in other:     # fitted on another baseline than ``fitter``'s: not confirmed with it
             c.stripped = True
             c.own_fitter = alternative      # whose model its prediction is (hwid.diagnose.corrected)

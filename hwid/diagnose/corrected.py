@@ -66,7 +66,7 @@ def _with_actuator_as_effects(model: HWModel) -> HWModel:
 
 def starts_after(verdict, fitter) -> dict[int, dict] | None:
     """Per validation experiment (index), the start of :func:`corrected`'s model that gives the
-    verdict's prediction: ``gear``, ``rest``, ``position``, ``ringing`` (each None for the model's
+    verdict's prediction: ``gear``, ``rest``, ``position``, ``ringing``, ``memory`` (each None for the model's
     default; the arguments of :meth:`hwid.model.HWModel.simulate`), and ``exact`` False where the
     prediction used a start no model simulation takes (an actuator run on through the call before
     from where it last crossed the play, fresh and carried actuators from two gear starts). None
@@ -87,6 +87,7 @@ def starts_after(verdict, fitter) -> dict[int, dict] | None:
         same = bool(np.array_equal(pred, verdict.predictions[i]))
         out[i] = {"gear": gear, "rest": s["rests"][-1] if s["rests"] else None,
                   "position": s.get("position") if share > 0 else None, "ringing": s.get("ringing"),
+                  "memory": s.get("memory"),
                   "exact": bool(exact and same)}
     return out
 

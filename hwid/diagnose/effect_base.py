@@ -123,6 +123,18 @@ class Effect:
         extra = self.spec_params() if hasattr(self, "spec_params") else {}
         return EffectSpec(self.name, tuple(zip(self.params, map(float, theta))) + tuple(extra.items()))
 
+    def forms(self, refit_h: bool = False) -> list["Effect"]:
+        """The effect's forms, each fitted and the one that fits the fit experiments better kept
+        (:meth:`hwid.diagnose.rank.EffectFitter.fit`; a friction on the load or on the gear's
+        path, a hysteresis before or after h); ``refit_h``: h is re-estimated with the effect.
+        Most effects have one."""
+        return [self]
+
+    def form_params(self) -> dict:
+        """Which of :meth:`forms` this is, as the model carries it (reported beside the fitted
+        parameters, without intervals: a choice, not an estimate); empty for a single form."""
+        return {}
+
     def log_params(self) -> tuple[bool, ...]:
         """Which parameters are fitted on a log scale."""
         return (False,) * len(self.params)

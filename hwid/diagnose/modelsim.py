@@ -233,6 +233,46 @@ class ModelSim:
 
         return self._search(cost, lo, hi)
 
+    def memory_start(self, i: int, predict, lo: float, hi: float, restart, through_h: bool = True,
+                     reach: float = np.inf, base=None) -> dict | None:
+        """The state ``s`` in [lo, hi] an effect's memory (a play's place, a friction's state) is set
+        to at sample ``k = restart(first)`` of experiment ``i`` that fits the measured output best;
+        None where ``restart`` says the memory no longer shows at the first scored sample
+        ``first`` (it returns None) or with nothing measured (:meth:`measure`).
+        ``predict(s, k)``: the signal entering h (``through_h``; else the output itself); ``reach``:
+        the most the memory can move that signal, below a tenth of the noise floor (through h's
+        steepest slope on the scored samples, at ``base``, default ``predict(0, 0)``) it is not
+        looked for. Returns and notes ``memory``,
+        ``{"from_sample": k, "start": s}`` (:meth:`note_start`).
+
+        As :meth:`gear_start` says of the gear: a rig may hold its memory from before a call (left
+        at rest after a move, every state kept), and where the lead-in does not move far enough
+        to wipe it, one number per experiment is a nuisance parameter like the initial state
+        ``hwid compare`` estimates."""
+        scored = self._scored(i)
+        if scored is None:
+            return None
+        y, m, h, sigma = scored
+        out = h if through_h else (lambda x: x)
+        if np.isfinite(reach):
+            x = (predict(0.0, 0) if base is None else np.asarray(base))[m]
+            eps = 1e-6 * max(1.0, float(np.max(np.abs(x))))
+            slope = float(np.max(np.abs(out(x + eps) - out(x - eps)))) / (2 * eps)
+            if reach * slope < 0.1 * sigma:
+                return None
+        k = restart(int(np.argmax(m)))
+        if k is None:
+            return None
+        ys = y[m]
+
+        def cost(s):
+            r = ys - out(predict(s, k))[m]
+            return float(r @ r)
+
+        memory = {"from_sample": int(k), "start": float(self._search(cost, lo, hi))}
+        self.note_start(i, memory=memory)
+        return memory
+
     def _search(self, cost, lo: float, hi: float) -> float:
         """The minimiser of ``cost`` over [lo, hi] (:func:`hwid.diagnose.starts.search_1d`)."""
         return search_1d(cost, lo, hi, self.NUISANCE_POINTS)

@@ -28,9 +28,8 @@ from hwid.diagnose.gap import correlation_time, rms
 from hwid.diagnose.h_refit import HRefit
 from hwid.diagnose.intervals import param_intervals
 from hwid.diagnose.modelsim import ModelSim, ReblockedSim
-from hwid.diagnose.verdict import Candidate, bic_score, explained_fraction, rank
+from hwid.diagnose.verdict import Candidate, bic_score, explained_fraction
 from hwid.model import InputNonlinearity
-from hwid.threads import forked_map
 
 #: two readings of one fit whose fit-experiment criteria (BIC) differ by less than this fit those
 #: experiments alike (a difference of 2 is the conventional "not worth mentioning")
@@ -377,10 +376,17 @@ class EffectFitter(HRefit):
         :meth:`Effect.loosen`: the play's width) grows while the fit experiments' criterion
         :meth:`fit_criterion` improves, each step the better of the two, each member started from
         the one before, with the samples counted as independent as the smaller member's residual
-        on the fit experiments is (:meth:`n_eff_residual`). An identified model's refit moves F's
-        borders, which the looser bend's freedom would only repeat."""
+        on the fit experiments is (:meth:`n_eff_residual`); an identified model's refit moves F's
+        borders, which the looser bend's freedom would only repeat. Of an effect's forms
+        (:meth:`Effect.forms`), the lowest criterion (the first's residual counting samples) wins."""
         if eff.disturbance:
             return self._fit_drift(eff)
+        fits = [self._fit_family(form) for form in eff.forms(self.refit_h)]
+        n = self.n_eff_residual(fits[0].fitted, fits[0]) if len(fits) > 1 else 1.0
+        return self._with_intervals(min(fits, key=lambda c: self.fit_criterion(c, n)))
+
+    def _fit_family(self, eff: effect_models.Effect) -> Candidate:
+        """One form of an effect (:meth:`Effect.forms`) as :meth:`fit` says, without intervals."""
         best = self._fit_one(eff)
         while True:
             n = self.n_eff_residual(eff, best)
@@ -394,7 +400,7 @@ class EffectFitter(HRefit):
                     tried.append((self.fit_criterion(cand, n), bigger, cand))
             tried = [t for t in tried if t[0] < self.fit_criterion(best, n)]
             if not tried:
-                return self._with_intervals(self._reading(eff, best, n))
+                return self._reading(eff, best, n)
             _, eff, best = min(tried, key=lambda t: t[0])
 
     def _reading(self, eff, best: Candidate, n: float) -> Candidate:
@@ -599,6 +605,7 @@ class EffectFitter(HRefit):
         ef = explained_fraction(gb, ga, self.sigma)
         score = bic_score(gb, ga, k, self.n_eff)
         params = {p: float(v) for p, v in zip(eff.params, theta)}
+        params.update(eff.form_params())
         per = {name: rms(r) for name, r in zip(self.names_val, res)}
         c = Candidate(eff.name, eff.block, params, gf, ga, ef, score, float(k), per, preds)
         if self.refit_g:
@@ -674,27 +681,3 @@ class EffectFitter(HRefit):
         F, G = self.input_nl(m), self.linear(m)
         return {"input_nonlinearity": F.to_dict(), "linear": {"num": list(G.num), "den": list(G.den),
                                                               "delay": G.delay}}
-
-
-#: The effects' fits, longest first (seconds on five identified diagnoses of labelled development
-#: rigs: curved borders 2.8-5.4, sensor lag 2.5-5.0, resonance 1.8-4.8, rate limit 1.1-3.1, the
-#: others 0.5-2.9, drift 0.02): the order the workers take them in. An effect not listed goes first.
-LONGEST_FIRST = ("curved_borders", "sensor_lag", "resonance", "rate_limit", "input_deadzone", "input_saturation",
-                 "sensor_saturation", "time_delay", "drift")
-
-
-def fit_all(fitter: EffectFitter, effects: dict[str, effect_models.Effect], echo=None) -> list[Candidate]:
-    """Fit every effect; return the candidates ranked (explained fraction, then score).
-
-    The effects' fits are independent (each starts from the same baseline and leaves the fitter as
-    it found it): on several cores they run in forked workers, one effect at a time each, the
-    longest first (:func:`hwid.threads.forked_map`, :data:`LONGEST_FIRST`), which halves a
-    diagnosis's analysis on the 2-core machine."""
-    names = list(effects)
-    out = forked_map(lambda name: fitter.fit(effects[name]), names,
-                     cost=lambda name: -LONGEST_FIRST.index(name) if name in LONGEST_FIRST else 1)
-    if echo:
-        for name, c in zip(names, out):
-            echo(f"  {name:18s} explained {c.explained_fraction:5.2f}  gap after {c.gap_after:.4g}  "
-                 f"score {c.score:.4g}  {c.params}")
-    return rank(out)
