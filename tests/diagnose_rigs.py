@@ -425,6 +425,18 @@ def _zoh(dt, num=(2.0,), den=(1.0, 3.0, 2.0)):
     return np.ravel(b), a
 
 
+def _carried_g(r, u, dt):
+    """The base plant's G driven by the gear's output (play 0.3), its state carried over between calls
+    (from rest at the first call's input)."""
+    v = r.gear_out(u, 0.3)
+    b, a = _zoh(dt)
+    zi = getattr(r, "zi", None)
+    if zi is None:
+        zi = signal.lfiltic(b, a, y=[v[0]] * (len(a) - 1), x=[v[0]] * (len(b) - 1))
+    w, r.zi = signal.lfilter(b, a, v, zi=zi)
+    return w
+
+
 def _friction_rig(name: str, u, dt):
     """The base plant with a Dahl friction force on the gear's output side: G is driven by
     ``v + coulomb z + viscous dv/dt``, ``dz/dv = (1 - z sgn dv) / pre_sliding`` (solved exactly over
@@ -469,12 +481,7 @@ def output_hysteresis(u, dt):
     t = TRUTH["output_hysteresis"]
     r = _rig("output_hysteresis")
     u = np.asarray(u, float)
-    v = r.gear_out(u, 0.3)
-    b, a = _zoh(dt)
-    zi = getattr(r, "zi", None)
-    if zi is None:
-        zi = signal.lfiltic(b, a, y=[v[0]] * (len(a) - 1), x=[v[0]] * (len(b) - 1))
-    w, r.zi = signal.lfilter(b, a, v, zi=zi)
+    w = _carried_g(r, u, dt)
     plays = getattr(r, "plays", None) or [float(w[0])] * 4
     out = np.empty_like(w)
     for k, wk in enumerate(w):
@@ -543,12 +550,7 @@ def output_hysteresis_pi(u, dt):
     a linear part; plays and G carried over."""
     r = _rig("output_hysteresis_pi")
     u = np.asarray(u, float)
-    v = r.gear_out(u, 0.3)
-    b, a = _zoh(dt)
-    zi = getattr(r, "zi", None)
-    if zi is None:
-        zi = signal.lfiltic(b, a, y=[v[0]] * (len(a) - 1), x=[v[0]] * (len(b) - 1))
-    w, r.zi = signal.lfilter(b, a, v, zi=zi)
+    w = _carried_g(r, u, dt)
     plays = getattr(r, "plays", None) or [float(w[0])] * 3
     share = PI_PLAYS["through_plays"]
     out = np.empty_like(w)
