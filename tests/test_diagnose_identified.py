@@ -250,6 +250,7 @@ def _paper_identified(tmp_path, driver: str) -> dict:
     return diagnose(config.load(p), tmp_path / "out", model=None, echo=lambda *a: None)
 
 
+@pytest.mark.slow     # friction's forms fitted with G re-estimated jointly: about 7 minutes
 def test_identified_clip_between_the_lags_of_g_is_unexplained(tmp_path):
     """The paper's plant with a clip between G's two lags, identified from the rig: a static clip
     of the input takes the largest gaps down, but makes a validation sine worse than the best model
