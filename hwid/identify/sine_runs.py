@@ -74,7 +74,12 @@ def unsafe_precompensator(cfg, nonlinear) -> str:
     if cfg.protocols.sine is None or nonlinear is None:
         return ""
     sines = _config_sines(cfg)
-    return _why_unsafe(cfg, nonlinear, sines, _inputs(cfg, nonlinear, sines))
+    try:
+        inputs = _inputs(cfg, nonlinear, sines)
+    except ValueError as err:   # stage 1's F has no pre-compensator (its borders cross once inverted)
+        return (f"no pre-compensator can be built from stage 1 (S^d = {nonlinear.slope_down:.3g}, d+ = "
+                f"{nonlinear.d_plus:.3g}, d- = {nonlinear.d_minus:.3g}): {err}")
+    return _why_unsafe(cfg, nonlinear, sines, inputs)
 
 
 def run_sines(cfg, nonlinear, plant=None, journal_dir=None, progress: bool | None = None):
