@@ -204,6 +204,10 @@ def test_a_stage_1_that_did_not_identify_f_never_drives_the_plant(tmp_path):
     assert Plant.calls == 0
     assert unsafe_precompensator(cfg, stage1("backlash", 0.8, 0.3, -0.3)) == ""
     assert unsafe_precompensator(cfg, stage1("backlash_inverse", 0.7, 0.25, -0.2)) == ""
+    # a judged seed's stage 1 with no dead band (d+ = d- = 0.7395): no backlash inverts it, and
+    # building one raised a ValueError out of the diagnosis; it is an unsafe pre-compensator
+    why = unsafe_precompensator(cfg, stage1("backlash_inverse", 0.7269, 0.7395, 0.7395))
+    assert why.startswith("no pre-compensator can be built from stage 1") and "d_plus > d_minus" in why
 
 
 @pytest.mark.slow      # a long end-to-end diagnosis (about a minute on 2 cores); make test-slow, CI
