@@ -124,15 +124,16 @@ class Friction(_FrictionLaw):
         """LuGre's Stribeck level (:class:`LuGreFriction`) from this fit, started at 1.4 Coulomb
         levels below a tenth of the speed of G's output crossing its range at G's bandwidth (noted
         by :meth:`bounds`, which every fit calls first). None for a Coulomb level below
-        :attr:`LUGRE_FROM` of the gear output's range: LuGre's terms are shares of it."""
-        if abs(float(theta[0])) < self._lugre_from:
+        :attr:`LUGRE_FROM` of the gear output's range, or below zero (a force along the motion is
+        no friction, :meth:`stands_in`, and has no Stribeck level): LuGre's terms are shares of it."""
+        if float(theta[0]) < self._lugre_from:
             return None
         return LuGreFriction(True, False), np.r_[np.asarray(theta, float)[:3], 1.4, self._stribeck_start]
 
     def loosen(self, theta):
         """LuGre's bristle damping (:class:`LuGreFriction`) from this fit, started at one sample
         (None as for :meth:`grow`)."""
-        if abs(float(theta[0])) < self._lugre_from:
+        if float(theta[0]) < self._lugre_from:
             return None
         return LuGreFriction(False, True), np.r_[np.asarray(theta, float)[:3], self._damping_start]
 

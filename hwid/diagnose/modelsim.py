@@ -17,6 +17,7 @@ from scipy.ndimage import uniform_filter1d
 from hwid.blocks.effects import free_response
 from hwid.blocks.linear import LinearBlock
 from hwid.diagnose.experiments import settling_time
+from hwid.diagnose.held_starts import nuisance
 from hwid.diagnose.starts import search_1d
 from hwid.model import HWModel, InputNonlinearity
 
@@ -231,7 +232,7 @@ class ModelSim:
             r = ys - h(simulate_linear(G, v, self.dt))[sel]
             return float(r @ r)
 
-        return self._search(cost, lo, hi)
+        return self._search(cost, lo, hi, ("gear", i))
 
     def memory_start(self, i: int, predict, lo: float, hi: float, restart, through_h: bool = True,
                      reach: float = np.inf, base=None) -> dict | None:
@@ -269,13 +270,14 @@ class ModelSim:
             r = ys - out(predict(s, k))[m]
             return float(r @ r)
 
-        memory = {"from_sample": int(k), "start": float(self._search(cost, lo, hi))}
+        memory = {"from_sample": int(k), "start": float(self._search(cost, lo, hi, ("memory", i)))}
         self.note_start(i, memory=memory)
         return memory
 
-    def _search(self, cost, lo: float, hi: float) -> float:
-        """The minimiser of ``cost`` over [lo, hi] (:func:`hwid.diagnose.starts.search_1d`)."""
-        return search_1d(cost, lo, hi, self.NUISANCE_POINTS)
+    def _search(self, cost, lo: float, hi: float, key) -> float:
+        """The minimiser of ``cost`` over [lo, hi] (:func:`hwid.diagnose.starts.search_1d`), held
+        under ``key`` across a Jacobian's columns (:func:`hwid.diagnose.held_starts.nuisance`)."""
+        return nuisance(lambda: search_1d(cost, lo, hi, self.NUISANCE_POINTS), key)
 
     @property
     def v_span(self) -> tuple[float, float]:
@@ -324,7 +326,7 @@ class ModelSim:
             r = ys - h(w + (level - v[0]) * d)[m]
             return float(r @ r)
 
-        level = self._search(cost, lo, hi)
+        level = self._search(cost, lo, hi, ("rest", i))
         self.note_start(i, rests=float(level))
         return w + (level - v[0]) * d
 

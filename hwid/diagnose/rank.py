@@ -26,6 +26,7 @@ from hwid.diagnose import effects as effect_models, search
 from hwid.diagnose.baseline import cancel_slow_pairs, mirror_rhp_zeros, split_modes
 from hwid.diagnose.gap import correlation_time, rms
 from hwid.diagnose.h_refit import HRefit
+from hwid.diagnose.held_starts import HeldJacobian
 from hwid.diagnose.intervals import param_intervals
 from hwid.diagnose.modelsim import ModelSim, ReblockedSim
 from hwid.diagnose.verdict import Candidate, bic_score, explained_fraction
@@ -547,14 +548,18 @@ class EffectFitter(HRefit):
 
     def _lsq_fit(self, fun, x0, step: float):
         """Bounded least squares on the unit box (None when it cannot start); ``max_nfev`` counts
-        iterations (scipy does not count the finite-difference Jacobian's runs)."""
+        iterations (scipy does not count the finite-difference Jacobian's runs). Where the residual
+        searches a nuisance start (a gear's place, a friction's memory), the Jacobian's columns
+        hold it (:class:`hwid.diagnose.held_starts.HeldJacobian`)."""
+        held = HeldJacobian(fun, step)
+        kw = dict(fun=held.fun, jac=held.jac) if held.searched(np.asarray(x0, float)) else dict(fun=fun)
         try:
             if self.refit_g:    # more parameters, each iteration costs more: looser stops
-                return least_squares(fun, x0, bounds=(0.0, 1.0), diff_step=step, x_scale=1.0,
+                return least_squares(x0=x0, bounds=(0.0, 1.0), diff_step=step, x_scale=1.0,
                                      max_nfev=min(20 * (len(x0) + 1), self.MAX_ITER), method="trf",
-                                     **self.JOINT_TOL)
-            return least_squares(fun, x0, bounds=(0.0, 1.0), diff_step=step, x_scale=1.0,
-                                 max_nfev=40 * (len(x0) + 1), method="trf")
+                                     **self.JOINT_TOL, **kw)
+            return least_squares(x0=x0, bounds=(0.0, 1.0), diff_step=step, x_scale=1.0,
+                                 max_nfev=40 * (len(x0) + 1), method="trf", **kw)
         except ValueError:
             return None
 
