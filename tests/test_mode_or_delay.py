@@ -88,9 +88,21 @@ def test_mode_and_delay_rigs_never_the_wrong_one_alone(tmp_path, driver, truth, 
     0.2 s, each diagnosed with the base plant given and identified: the right effect is named, or
     the verdict is one of the two with the other in ``indistinguishable_from`` and a sine near the
     fitted mode as the next experiment. A resonance named for the delay rig (or a delay for the
-    mode's) with nothing beside it fails."""
+    mode's) with nothing beside it fails. Identified, the model may carry the truth in its G and
+    predict within the noise as it is: then the verdict is `none`, its reason naming what G
+    carries, at the truth (the delay as G's excess phase, the mode as a lightly damped pair)."""
     s = _diagnose(tmp_path, driver, identified)
     name, alike = s["verdict"]["effect"], s["verdict"]["indistinguishable_from"]
+    if identified and name == "none":
+        assert s["gap_before"] <= 1.1 * s["noise_floor"]
+        refit = s["model_refit"]
+        if truth == "time_delay":
+            assert "excess phase" in s["verdict"]["why"]
+            assert abs(refit["excess_phase_taken_out_s"] - R.DELAY["delay_s"]) < 2 * DT
+        else:
+            assert "lightly damped mode" in s["verdict"]["why"]
+            assert any(abs(m["omega_n"] / R.FAST_MODE["omega_n"] - 1) < 0.05 for m in refit["modes_taken_out"])
+        return
     if name == truth:
         if truth == "resonance":
             mode = next(c for c in s["candidates"] if c["effect"] == "resonance")
