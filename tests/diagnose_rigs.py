@@ -48,6 +48,30 @@ def paper_config(driver: str) -> dict:
                           "sine": {"amplitude": 1.0, "frequencies": [0.02, 0.05, 0.1, 0.2], "periods": 3}}}
 
 
+def base_config(driver: str, dt: float = 0.04) -> dict:
+    """A config of the :data:`BASE`-plant rig ``driver`` with short staircases (holds of 8 s) and
+    three sines, the rig started afresh (as :func:`paper_config`)."""
+    _RIGS.pop(driver, None)
+    return {"name": "rig", "seed": 5, "sampling": {"dt": dt},
+            "plant": {"kind": "external", "callable": f"diagnose_rigs:{driver}"},
+            "protocols": {"staircase": {"levels_up": [-1.0, -0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 0.75, 1.0],
+                                        "levels_down": [1.0, 0.75, 0.5, 0.25, 0.0, -0.25, -0.5, -0.75, -1.0],
+                                        "hold": 8.0},
+                          "sine": {"amplitude": 0.8, "frequencies": [0.5, 1.0, 2.0], "periods": 3}}}
+
+
+def diagnose_base_rig(tmp, driver: str, dt: float = 0.04, model: bool = True, effects=None) -> dict:
+    """``hwid diagnose`` of the rig ``driver`` (:func:`base_config`), with :data:`BASE` as the model
+    (``model``) or identified, quietly."""
+    from hwid import config
+    from hwid.diagnose import diagnose
+    import yaml
+    (tmp / "c.yaml").write_text(yaml.safe_dump(base_config(driver, dt)))
+    (tmp / "base.yaml").write_text(yaml.safe_dump({"plant": BASE}))
+    return diagnose(config.load(tmp / "c.yaml"), tmp / "out", model=(tmp / "base.yaml") if model else None,
+                    echo=lambda *a: None, effects=effects)
+
+
 class _Rig:
     def __init__(self, seed: int):
         self.gear = 0.0
@@ -202,12 +226,7 @@ def bent_borders(u, dt):
     bend = np.tanh(2.5 * u) / np.tanh(2.5)
     lo, hi = u - 0.3 + TRUTH["bent_borders"]["up"] * bend, u + 0.3 + TRUTH["bent_borders"]["down"] * bend
     v = _play(r, lo, hi)
-    num, den = [2.0], [1.0, 3.0, 2.0]
-    b, a, _ = signal.cont2discrete((num, den), dt, method="zoh")[:3]
-    b = np.ravel(b)
-    zi = signal.lfiltic(b, a, y=[v[0]] * (len(a) - 1), x=[v[0]] * (len(b) - 1))
-    w = signal.lfilter(b, a, v, zi=zi)[0]
-    return w - 0.1 * w ** 3 + r.noise(u.size)
+    return _base_g_h(v, dt) + r.noise(u.size)
 
 
 def input_deadzone(u, dt):
@@ -425,6 +444,14 @@ def _zoh(dt, num=(2.0,), den=(1.0, 3.0, 2.0)):
     return np.ravel(b), a
 
 
+def _base_g_h(v, dt) -> np.ndarray:
+    """:data:`BASE`'s G (from rest at ``v[0]``) and h, driven by the gear's output ``v``."""
+    b, a = _zoh(dt)
+    zi = signal.lfiltic(b, a, y=[v[0]] * (len(a) - 1), x=[v[0]] * (len(b) - 1))
+    w = signal.lfilter(b, a, v, zi=zi)[0]
+    return w - 0.1 * w ** 3
+
+
 def _carried_g(r, u, dt):
     """The base plant's G driven by the gear's output (play 0.3), its state carried over between calls
     (from rest at the first call's input)."""
@@ -627,10 +654,7 @@ def _cubic_rig(name: str, u, dt):
     r = _rig(name)
     u = np.asarray(u, float)
     v = _cubic_gear(r, u, 0.3, CUBIC[name])
-    b, a = _zoh(dt)
-    zi = signal.lfiltic(b, a, y=[v[0]] * (len(a) - 1), x=[v[0]] * (len(b) - 1))
-    w = signal.lfilter(b, a, v, zi=zi)[0]
-    return w - 0.1 * w ** 3 + r.noise(u.size)
+    return _base_g_h(v, dt) + r.noise(u.size)
 
 
 # the drivers, one per bend of ``CUBIC`` (``plant.callable: diagnose_rigs:cubic_in``, ...)
@@ -694,10 +718,7 @@ def periodic_load(u, dt):
     t = r.t + np.arange(u.size) * dt
     r.t = float(t[-1] + dt) if u.size else r.t
     v = r.gear_out(u, 0.3) + p["amp"] * np.sin(p["omega"] * t + p["phase"])
-    b, a = _zoh(dt)
-    zi = signal.lfiltic(b, a, y=[v[0]] * (len(a) - 1), x=[v[0]] * (len(b) - 1))
-    w = signal.lfilter(b, a, v, zi=zi)[0]
-    return w - 0.1 * w ** 3 + r.noise(u.size)
+    return _base_g_h(v, dt) + r.noise(u.size)
 
 
 def fast_mode(u, dt):

@@ -13,10 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import yaml
 
-from hwid import config
-from hwid.diagnose import BLOCK, CATALOGUE, diagnose
+from hwid.diagnose import BLOCK, CATALOGUE
 from hwid.diagnose.effects import catalogue
 from hwid.diagnose.effects_after_gear import Friction, OutputHysteresis, dahl_state, play_sum
 from hwid.diagnose.intervals import param_intervals
@@ -27,17 +25,7 @@ DT = 0.04
 
 
 def _diagnose(tmp_path, driver: str, model: bool = True, effects=None) -> dict:
-    d = {"name": "rig", "seed": 5, "sampling": {"dt": DT},
-         "plant": {"kind": "external", "callable": f"diagnose_rigs:{driver}"},
-         "protocols": {"staircase": {"levels_up": [-1.0, -0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 0.75, 1.0],
-                                     "levels_down": [1.0, 0.75, 0.5, 0.25, 0.0, -0.25, -0.5, -0.75, -1.0],
-                                     "hold": 8.0},
-                       "sine": {"amplitude": 0.8, "frequencies": [0.5, 1.0, 2.0], "periods": 3}}}
-    R._RIGS.pop(driver, None)
-    (tmp_path / "cfg.yaml").write_text(yaml.safe_dump(d))
-    (tmp_path / "base.yaml").write_text(yaml.safe_dump({"plant": R.BASE}))
-    return diagnose(config.load(tmp_path / "cfg.yaml"), tmp_path / "out",
-                    model=(tmp_path / "base.yaml") if model else None, echo=lambda *a: None, effects=effects)
+    return R.diagnose_base_rig(tmp_path, driver, DT, model=model, effects=effects)
 
 
 def _covers(cand: dict, truth: dict) -> None:

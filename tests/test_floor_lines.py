@@ -11,11 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import yaml
 from scipy import signal
 
 from hwid import adequacy, config, spectral_lines
-from hwid.diagnose import diagnose, gap
+from hwid.diagnose import gap
 from hwid.plant import Record
 
 import diagnose_rigs as R
@@ -115,17 +114,7 @@ def test_diagnosis_floor_of_ar_repeats_sets_nothing_aside():
 
 @pytest.fixture(scope="module")
 def periodic_load_diagnosis(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("periodic_load")
-    d = {"name": "rig", "seed": 5, "sampling": {"dt": DT},
-         "plant": {"kind": "external", "callable": "diagnose_rigs:periodic_load"},
-         "protocols": {"staircase": {"levels_up": [-1.0, -0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 0.75, 1.0],
-                                     "levels_down": [1.0, 0.75, 0.5, 0.25, 0.0, -0.25, -0.5, -0.75, -1.0],
-                                     "hold": 8.0},
-                       "sine": {"amplitude": 0.8, "frequencies": [0.5, 1.0, 2.0], "periods": 3}}}
-    (tmp / "c.yaml").write_text(yaml.safe_dump(d))
-    (tmp / "base.yaml").write_text(yaml.safe_dump({"plant": R.BASE}))
-    R._RIGS.pop("periodic_load", None)
-    return diagnose(config.load(tmp / "c.yaml"), tmp / "out", model=tmp / "base.yaml", echo=lambda *a: None)
+    return R.diagnose_base_rig(tmp_path_factory.mktemp("periodic_load"), "periodic_load", DT)
 
 
 def test_periodic_load_is_set_aside_from_the_floor_and_unexplained(periodic_load_diagnosis):

@@ -5,10 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import yaml
 
-from hwid import config
-from hwid.diagnose import diagnose, mode_or_delay
+from hwid.diagnose import mode_or_delay
 from hwid.diagnose.experiments import Design
 from hwid.diagnose.next_experiment import mode_sines
 from hwid.diagnose.verdict import Candidate, Relevance
@@ -67,17 +65,7 @@ def test_mode_sines_at_the_mode_within_the_range():
 
 
 def _diagnose(tmp, driver: str, identified: bool) -> dict:
-    d = {"name": "rig", "seed": 5, "sampling": {"dt": DT},
-         "plant": {"kind": "external", "callable": f"diagnose_rigs:{driver}"},
-         "protocols": {"staircase": {"levels_up": [-1.0, -0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 0.75, 1.0],
-                                     "levels_down": [1.0, 0.75, 0.5, 0.25, 0.0, -0.25, -0.5, -0.75, -1.0],
-                                     "hold": 8.0},
-                       "sine": {"amplitude": 0.8, "frequencies": [0.5, 1.0, 2.0], "periods": 3}}}
-    (tmp / "c.yaml").write_text(yaml.safe_dump(d))
-    (tmp / "base.yaml").write_text(yaml.safe_dump({"plant": R.BASE}))
-    R._RIGS.pop(driver, None)
-    return diagnose(config.load(tmp / "c.yaml"), tmp / "out", model=None if identified else tmp / "base.yaml",
-                    echo=lambda *a: None)
+    return R.diagnose_base_rig(tmp, driver, DT, model=not identified)
 
 
 @pytest.mark.slow
