@@ -158,3 +158,37 @@ def test_friction_without_a_coulomb_level_is_never_the_verdict():
         c = Candidate("friction", "linear", {}, 0.02, 0.0101, 1.0, 50.0, 3, intervals=intervals,
                       stands_in=f.stands_in(intervals))
         assert eligible(c, drift_plausible=False) is named
+
+
+def test_a_placement_the_fit_experiments_cannot_tell_is_undetermined():
+    """Of an effect's forms, one that fits the fit experiments alike (criterion within SAME_FIT)
+    and acts elsewhere leaves the place undetermined (interval null, with the reason); one that
+    fits clearly worse leaves it as fitted."""
+    from types import SimpleNamespace
+
+    from hwid.diagnose.effects_after_gear import OutputHysteresis, OutputHysteresisAfterH
+    from hwid.diagnose.rank import SAME_FIT, EffectFitter
+    from hwid.diagnose.verdict import Candidate
+
+    n = 1000.0
+    fitter = SimpleNamespace(fit_criterion=lambda c, n_: EffectFitter.fit_criterion(None, c, n_))
+
+    def cand(form, gap_fit):
+        c = Candidate("output_hysteresis", "output", {"width": 0.1, **form.form_params()}, gap_fit, gap_fit, 0.9,
+                      10.0, 2.0)
+        c.fitted, c.intervals = form, {"width": [0.09, 0.11]}
+        return c
+    # n ln(gap^2): a gap 0.05 % larger costs 1 (alike); 1 % larger costs 20 (told apart)
+    for other_gap, alike in ((0.010005, True), (0.0101, False)):
+        best = cand(OutputHysteresis(), 0.01)
+        other = cand(OutputHysteresisAfterH(), other_gap)
+        assert (EffectFitter.fit_criterion(None, other, n) - EffectFitter.fit_criterion(None, best, n) < SAME_FIT) \
+            == alike
+        out = EffectFitter._forms_alike(fitter, best, [best, other], n)
+        assert out is best and out.intervals["width"] == [0.09, 0.11]
+        if alike:
+            assert out.intervals["after_h"] is None and "after_h" in out.intervals["undetermined"]
+            assert "after_h undetermined" in out.params_text()
+        else:
+            assert "after_h" not in out.intervals
+            assert out.params_text() == "width 0.1 [0.09, 0.11], after_h 0"

@@ -387,6 +387,8 @@ def write_result(ctx: Context, gaps: Gaps, cands, drift_ok: bool, by_effect, d: 
              f"gap {summary['gap_before']:.4g}{_baseline_note(d.verdict, gaps)} -> {summary['gap_after']:.4g}, "
              f"noise floor {ctx.floor.sigma:.4g}"
              + adequacy_tail(ctx))
+    if isinstance(d.verdict, Candidate):
+        ctx.echo(f"  {d.verdict.effect}: {d.verdict.params_text()}")
     return summary
 
 

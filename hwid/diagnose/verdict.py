@@ -34,6 +34,20 @@ class Candidate:
     intervals: dict | None = None   # 95 % intervals of ``params`` (:mod:`hwid.diagnose.intervals`)
     stands_in: str | None = None    # why the fit is not the effect (:meth:`Effect.stands_in`): never the verdict
 
+    def params_text(self) -> str:
+        """The parameters with their 95 % intervals, ``undetermined`` where the fit cannot tell
+        one (``coulomb 3.15 [1.66, 4.65], fed_back 0``)."""
+        iv = self.intervals or {}
+        parts = []
+        for name, value in self.params.items():
+            if name in iv and iv[name] is None:
+                parts.append(f"{name} undetermined (fitted {value:.4g})")
+            elif iv.get(name) is not None:
+                parts.append(f"{name} {value:.4g} [{iv[name][0]:.4g}, {iv[name][1]:.4g}]")
+            else:
+                parts.append(f"{name} {value:.4g}")
+        return ", ".join(parts)
+
     def to_dict(self) -> dict:
         d = {"effect": self.effect, "params": self.params, "gap_after": self.gap_after,
              "explained_fraction": self.explained_fraction, "score": self.score,
