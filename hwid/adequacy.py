@@ -9,10 +9,13 @@ The noise floor (:func:`estimate_floor`) comes, in this order, from
 * settled holds: the second half of each stretch of constant input, where the output is constant
   but for noise and a slow drift (each block of at most :data:`BLOCK` samples less its own quadratic);
 * a smoother: the residual of a local quartic (Savitzky-Golay, :data:`SMOOTHER_WINDOW` samples),
-  whose variance is ``sigma^2 (1 - h_0)`` for white noise (``h_0`` the smoother's centre weight);
+  whose variance is ``sigma^2 (1 - h_0)`` for white noise (``h_0`` the smoother's centre weight),
+  away from the input's steps (:func:`quiet`);
+* the quantum, where a quantised output rests on one value between most samples;
 
 never below the output's quantum ``q / sqrt(12)`` and never above the output's own spread (a floor
-that large is undetermined: the data cannot tell noise from signal). Narrow-band components of the
+that large is undetermined: the data cannot tell noise from signal). With none of these the floor
+is undetermined. Narrow-band components of the
 repeats' differences or of the holds' scatter (a load at a frequency of its own,
 :func:`hwid.spectral_lines.find_lines`) are no noise: they are taken out before the floor is
 estimated and listed in ``NoiseFloor.set_aside``.
@@ -45,6 +48,8 @@ BLOCK = 100
 MIN_BLOCK = 20
 #: the smoother's window (samples) and polynomial order
 SMOOTHER_WINDOW, SMOOTHER_ORDER = 21, 4
+#: an input change larger than this many times the median change is a step (:func:`input_steps`)
+STEP = 10.0
 #: a block whose variance exceeds the median block's by this tail probability is left out of the floor
 OUTLIER_P = 1e-3
 #: Largest lag of the residual tests (whiteness and input correlation), as MATLAB's ``resid`` draws them;
@@ -337,8 +342,35 @@ def _smoother_kernel(window: int) -> tuple[float, float]:
     return float(h[window // 2]), float(1.0 / np.sum(acf * acf))
 
 
+def input_steps(u) -> np.ndarray:
+    """Where the input steps: the samples ``k`` whose change from ``k - 1`` exceeds :data:`STEP`
+    times the median absolute change (any change, where that median is 0: a piecewise constant
+    input). A sine or a ramp, however fast, has none."""
+    du = np.abs(np.diff(np.asarray(u, float)))
+    if not du.size:
+        return np.zeros(0, int)
+    med = float(np.median(du))
+    return np.flatnonzero(du > STEP * med if med > 0 else du > 0) + 1
+
+
+def quiet(u, n: int, window: int) -> np.ndarray:
+    """The samples of a record of ``n`` whose ``window`` (centred) neither holds an input step nor
+    ends within a window after one: where a plant's response is smooth on the window's scale
+    however fast it follows a step (:func:`input_steps`)."""
+    m = np.ones(n, bool)
+    if u is None:
+        return m
+    half = window // 2
+    for k in input_steps(np.asarray(u, float)[:n]):
+        m[max(k - half, 0): k + half + window] = False
+    return m
+
+
 def _smoother(records) -> tuple | None:
-    """The floor from a local quartic's residual, its variance corrected by ``1 - h_0``."""
+    """The floor from a local quartic's residual, its variance corrected by ``1 - h_0``, where the
+    output is smooth on the quartic's window (:func:`quiet`): at a step, a servo that follows it
+    within a sample or two leaves a residual that is its own motion (STS3215 log halves: 6.6-8.5
+    counts from the whole residual, the encoder's quantum 0.29)."""
     pieces, used = [], 0
     for r in records:
         y = np.asarray(r.y, float)
@@ -346,14 +378,32 @@ def _smoother(records) -> tuple | None:
         if window <= SMOOTHER_ORDER + 2:
             continue
         h0, per_sample = _smoother_kernel(window)
-        res = (y - signal.savgol_filter(y, window, SMOOTHER_ORDER))[window // 2: y.size - window // 2]
-        for b in _blocks(res):
-            pieces.append((float(b @ b), b.size * (1.0 - h0), b.size * per_sample))
+        res = y - signal.savgol_filter(y, window, SMOOTHER_ORDER)
+        ok = quiet(getattr(r, "u", None), y.size, window)
+        ok[:window // 2] = ok[y.size - window // 2:] = False
+        for a, b in _runs(ok):
+            for blk in _blocks(res[a:b]):
+                pieces.append((float(blk @ blk), blk.size * (1.0 - h0), blk.size * per_sample))
         used += 1
     pooled = _pooled(pieces)
     if pooled is None:
         return None
     return pooled[0], pooled[1], 1.0, f"a local quartic over {SMOOTHER_WINDOW} samples on {used} record(s)", ()
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """``[start, stop)`` of each run of True in ``mask``."""
+    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
+
+
+def _still_on_the_quantum(records, q: float) -> bool:
+    """Whether a quantised output rests on one value between most consecutive samples (the median
+    absolute change is 0): its noise is then within the quantum."""
+    if q <= 0:
+        return False
+    d = np.concatenate([np.abs(np.diff(np.asarray(r.y, float))) for r in records])
+    return bool(d.size) and float(np.median(d)) == 0.0
 
 
 def output_quantum(records, quantum: float = 0.0) -> float:
@@ -395,7 +445,14 @@ def estimate_floor(records, quantum: float = 0.0) -> NoiseFloor:
             var, dof, kappa, detail, aside = found
             break
     else:
-        source, var, dof, kappa, detail, aside = "quantum", 0.0, 0.0, 1.0, "no repeat, hold or record long enough", ()
+        if not _still_on_the_quantum(records, q):
+            sigma = float(qf) if qf > 0 else (1e-6 * spread if spread > 0 else 1e-12)
+            return NoiseFloor(sigma, "none", float(qf), 0.0, 1.0, False,
+                              "no repeat, settled hold or stretch smooth on the smoother's window to estimate it "
+                              "from: the data do not determine the noise floor", ())
+        source, var, dof, kappa, aside = "quantum", 0.0, 0.0, 1.0, ()
+        detail = ("no repeat, settled hold or smooth stretch; the output rests on one value between most samples, "
+                  "its noise within the quantum")
     sigma, reason = float(np.sqrt(var)), f"from {detail}"
     if sigma < qf:
         sigma, source, dof = float(qf), "quantum", 0.0

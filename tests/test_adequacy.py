@@ -61,6 +61,43 @@ def test_floor_never_above_the_outputs_spread():
     assert "spread" in floor.reason
 
 
+def _servo(u, dt, rng, sigma=SIGMA) -> Record:
+    """A fast servo (G = 1 / (0.05 s + 1): half a sample at dt 0.1) that follows each step within a
+    sample or two: its output is not smooth on the smoother's window."""
+    fast = HWModel(InputNonlinearity("backlash", 1.0, 1.0, 0.01, -0.01), LinearBlock((20.0,), (1.0, 20.0)),
+                   PolynomialH((0.0, 1.0)))
+    return record("servo", u, dt, rng, sigma, plant=fast)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_servo_stepping_often_leaves_the_floor_undetermined_not_its_steps(seed):
+    """Steps every 1.5 s at dt 0.1 (15 samples, shorter than any hold the floor reads and than the
+    smoother's window): the whole smoother residual is the servo's motion at its steps (before: a
+    floor 20-40x sigma, on which any model was `adequate`); the floor is now undetermined."""
+    rng = np.random.default_rng(seed)
+    u = np.repeat(rng.uniform(-1.0, 1.0, 20), 15)
+    rec = _servo(u, 0.1, rng)
+    floor = adequacy.estimate_floor([rec])
+    assert not floor.determined and floor.source == "none" and floor.interval() is None
+    assert "do not determine" in floor.reason
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_smoother_reads_the_noise_between_a_servos_steps(seed):
+    """Steps every 8 s at dt 0.1 on a slow sine (no hold for the floor to read): away from each
+    step the smoother's residual is noise, its floor within its interval of sigma. (A step smaller
+    than ten median changes of the input is no step: its transient is as smooth as the sine.)"""
+    rng = np.random.default_rng(seed)
+    t = np.arange(1200) * 0.1
+    u = 0.5 * np.sin(2 * np.pi * 0.02 * t) + np.repeat(rng.uniform(-0.5, 0.5, 15), 80)
+    rec = _servo(u, 0.1, rng)
+    assert 12 <= adequacy.input_steps(u).size <= 14
+    floor = adequacy.estimate_floor([rec])
+    assert floor.source == "smoother" and floor.determined
+    lo, hi = floor.interval(0.99)
+    assert lo <= SIGMA <= hi, (floor, lo, hi)
+
+
 def test_floor_raised_to_the_quantum():
     rng = np.random.default_rng(5)
     rec = record("stairs", staircase(0.05), 0.05, rng, sigma=1e-4)

@@ -83,3 +83,27 @@ def test_the_true_model_is_adequate_and_keeps_none(tmp_path):
                  echo=lambda *a: None)
     assert s["model_adequacy"]["verdict"] == "adequate", s["model_adequacy"]["reason"]
     assert s["verdict"]["effect"] == "none"
+
+
+def test_none_from_a_floor_that_is_the_models_own_residual_is_unexplained():
+    """A log with no repeat, settled hold or smooth stretch: the diagnosis's floor is the model's
+    own residual's high-frequency part. With the data-alone floor undetermined, a gap within it is
+    no `none`; where the data determine a floor and the model is adequate on it, `none` stands."""
+    from types import SimpleNamespace
+
+    from hwid import adequacy
+    from hwid.diagnose.gap import NoiseFloor
+    from hwid.diagnose.model_check import not_none_from_a_misfit
+
+    said = []
+
+    def ctx(determined: bool):
+        floor = adequacy.NoiseFloor(0.3 if determined else 4e-5, "holds" if determined else "none", 0.0,
+                                    40.0 if determined else 0.0, 1.0, determined)
+        ad = adequacy.Adequacy("adequate" if determined else "undetermined", 0.31, None, floor, 1.03, None, None, "")
+        return SimpleNamespace(floor_from_model=True, model_adequacy=ad, echo=said.append,
+                               floor=NoiseFloor(2.85, 1.0, 100, 0.0, 0.0, np.zeros(0)))
+    verdict, why = not_none_from_a_misfit(ctx(False), "none", "", 1.25)
+    assert verdict == "unexplained" and "model's own residual" in why and said == [why]
+    assert not_none_from_a_misfit(ctx(True), "none", "", 1.25) == ("none", "")
+    assert not_none_from_a_misfit(ctx(False), "drift", "", 1.25) == ("drift", "")

@@ -119,7 +119,8 @@ class Context:
     from a model's outputs; ``rerun(index, times)``: the live plant's records of a validation
     experiment run again; ``model_adequacy``: the model on its own records
     (:class:`hwid.adequacy.Adequacy`), or None where nothing was assessed; ``adequacy_on``: which
-    records those were, in words."""
+    records those were, in words; ``floor_from_model``: the floor came from the model's own
+    residual (its high-frequency part), not from repeats or holds of the data."""
 
     cfg: object
     out: Path
@@ -140,6 +141,7 @@ class Context:
     rerun: Callable | None = None
     model_adequacy: object = None
     adequacy_on: str = ""
+    floor_from_model: bool = False
 
     @property
     def identified(self) -> bool:

@@ -52,6 +52,7 @@ def diagnose_recorded(cfg, out_dir, model=None, json_path=None, echo=print, effe
             "seconds_rig_validation": 0.0}
     ctx = Context(cfg, out, json_path, val, floor, drift_additivity(pairs, val.design, floor.sigma), sim_model,
                   origin, effects, cost, t_start, echo, band=logs.NO_BAND, from_logs=True)
+    ctx.floor_from_model = source.startswith(logs.RESIDUAL_FLOOR)
     ctx.extra = _extra(ctx, data)
     ctx.wander = _wander(val)
     return conclude(ctx)

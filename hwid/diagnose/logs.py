@@ -207,6 +207,10 @@ def without_slow_pairs(model, lo: float, echo, what: str = "the records") -> tup
                    model.actuator), [note]
 
 
+#: the source of a floor from the model's own residual (:func:`floor_from_logs`)
+RESIDUAL_FLOOR = "residual high-frequency part"
+
+
 def floor_from_logs(exps, recs, xs, F, design) -> tuple:
     """The noise floor, its source, and the repeat pairs ``(y, y_repeat, mask)`` (empty without
     repeats); the floor is never below the output's resolution ``q / sqrt(12)``. ``xs``: the
@@ -235,7 +239,7 @@ def floor_from_logs(exps, recs, xs, F, design) -> tuple:
                 source += f" ({n_repeats} of them repeats of {n_levels} level(s))"
         else:
             res = [(r.y - x)[e.mask] for e, r, x in zip(exps, recs, xs)]
-            floor, source = gap.noise_floor_from_residual(res, y_scale), "residual high-frequency part"
+            floor, source = gap.noise_floor_from_residual(res, y_scale), RESIDUAL_FLOOR
     quanta = [float(r.attrs.get("output_resolution", 0.0) or 0.0) for r in distinct]
     q = max(quanta) if quanta else 0.0
     if q > 0 and floor.sigma < q / np.sqrt(12.0):

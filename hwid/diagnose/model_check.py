@@ -59,7 +59,17 @@ def fails_own_records(ctx: Context, min_ratio: float) -> adequacy.Adequacy | Non
 
 def not_none_from_a_misfit(ctx: Context, verdict, why: str, min_ratio: float) -> tuple[object, str]:
     """``(verdict, why)``, with ``none`` turned into ``unexplained`` where the model fails its own
-    records (:func:`fails_own_records`): what the model misses there is not noise."""
+    records (:func:`fails_own_records`): what the model misses there is not noise; and where the
+    only floor is the model's own residual's (no repeat, hold or smooth stretch in the data: the
+    data-alone floor undetermined), which cannot tell noise from what the model misses."""
+    if verdict == "none" and ctx.floor_from_model and not (ctx.model_adequacy is not None
+                                                           and ctx.model_adequacy.floor.determined):
+        why = (f"the records hold no repeat, settled hold or smooth stretch to estimate the noise from: the "
+               f"diagnosis's floor {ctx.floor.sigma:.4g} is the high-frequency part of the model's own residual, "
+               "which holds whatever the model misses from one sample to the next, and a gap within it is no sign "
+               "that the plant is the model: unexplained instead of none")
+        ctx.echo(why)
+        return "unexplained", why
     ad = fails_own_records(ctx, min_ratio)
     if verdict != "none" or ad is None:
         return verdict, why
@@ -84,6 +94,8 @@ def adequacy_tail(ctx: Context) -> str:
     ad = ctx.model_adequacy
     if ad is None:
         return ""
+    if not ad.floor.determined:
+        return f"; the model on {adequacy_where(ctx)}: RMS {ad.rms_fit:.4g}, against a floor the data do not determine"
     return (f"; the model on {adequacy_where(ctx)}: RMS {ad.rms_fit:.4g} = {ad.ratio:.3g} x the floor "
             f"{ad.floor.sigma:.4g} ({ad.verdict})")
 
