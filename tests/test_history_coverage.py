@@ -6,7 +6,7 @@ time constant 0.5 s, cubic h, white noise 0.01), at holds of 5-10 s and of 2-6 s
   rise or a fall (the settle cut's leftover approach, and short levels read on their approach);
 - the 95 % intervals of d^+, d^-, S^d and the dead band cover the truth within binomial limits
   (two-sided binomial test at 0.005 on the runs where the quantity is determined); at 2-6 s
-  holds d+ falls short on these logs (31/39): marked as a known failure.
+  holds d+ can fall short (33/39 here, about 90 % over 100 logs): marked as a known failure.
 
 experiments/interval_coverage/run.py measures the same on 100 logs for the docs. About 3 minutes.
 """
@@ -88,8 +88,8 @@ def test_settled_levels_are_unbiased_with_their_standard_errors(shortest, longes
 @pytest.mark.parametrize("shortest,longest", [
     HOLDS[0],
     pytest.param(*HOLDS[1], marks=pytest.mark.xfail(
-        strict=False, reason="known: on these 40 logs d+ covers 31/39 and the dead band 33/39 at 2-6 s holds "
-                             "with unbiased levels; the cause is not found yet"))], ids=IDS)
+        strict=False, reason="known: at 2-6 s holds d+ covers 33/39 on these logs (about 90 % "
+                             "over 100) with unbiased levels; the cause is not found yet"))], ids=IDS)
 def test_border_intervals_cover_the_truth(shortest, longest):
     *_, cover = _study(shortest, longest)
     for name, (hits, counted) in cover.items():

@@ -69,8 +69,6 @@ from hwid.model import InputNonlinearity
 
 #: fewest samples ``steady_levels`` averages; shorter levels go through :func:`_short_level`
 MIN_STEADY = 20
-#: powers of the approach's exponential an extrapolated level is fitted with (:func:`_extrapolated`)
-EXTRAPOLATION_POWERS = 3
 #: settle time, in the levels' common time constants, left out of every level before it is averaged
 SETTLE_TAUS = 5.0
 
@@ -235,13 +233,11 @@ def settle_constant(segments, skip: int = 1) -> float:
                                                  options={"xatol": 1e-4}).x))
 
 
-def _approach(n: int, tau: float, powers: int = 2) -> np.ndarray:
-    """Columns ``1, exp(-t / tau), ..., exp(-powers t / tau)``: G's slowest mode seen through h (a
-    polynomial of an exponential approach holds its powers; after the first samples the square is
-    the largest that lasts, which is enough to find ``tau``; a level read from its whole approach,
-    :func:`_extrapolated`, needs :data:`EXTRAPOLATION_POWERS`)."""
+def _approach(n: int, tau: float) -> np.ndarray:
+    """Columns ``1, exp(-t / tau), exp(-2 t / tau)``: G's slowest mode seen through h (a
+    polynomial of an exponential approach holds its powers; the square is the largest that lasts)."""
     e = np.exp(-np.arange(n) / tau)
-    return np.column_stack([e ** k for k in range(powers + 1)])
+    return np.column_stack([np.ones(n), e, e * e])
 
 
 def _transient_corrected(y: np.ndarray, tau: float, first: int, mean: float, se: float,
@@ -279,17 +275,14 @@ def _robust_sigma(segments) -> float:
 
 def _extrapolated(y: np.ndarray, tau: float, sigma: float, skip: int = 1):
     """``(X, se, n)`` of a level too short to settle: :func:`_approach` with the levels' common
-    ``tau`` and :data:`EXTRAPOLATION_POWERS` powers (a cubic h puts the approach's third power in
-    the output: with the square only, levels after falls of over half the output's range came out
-    0.7 standard errors low on holds of 2-6 time constants, 0.2 with the cube; 30 logs),
-    fitted from its second sample on. None -- the level is not extrapolated -- when it
+    ``tau``, fitted from its second sample on. None -- the level is not extrapolated -- when it
     holds fewer than 6 samples or fewer than 3 time constants (the steady state would be a guess),
     when it settled long ago (:func:`_short_level` takes it), or when the approach does not follow
     the exponential to within 1.5 noise standard deviations ``sigma`` (a controller's ramp, a push)."""
     y = y[skip:]
     if y.size < 6 or tau <= 0 or not 3 * tau <= y.size <= 30 * tau:
         return None
-    a = _approach(y.size, tau, EXTRAPOLATION_POWERS)
+    a = _approach(y.size, tau)
     coef = np.linalg.lstsq(a, y, rcond=None)[0]
     e = y - a @ coef
     if float(np.sqrt(np.mean(e * e))) > 1.5 * sigma:
