@@ -12,7 +12,8 @@ is not scored.
 Settled outputs: the settle time is found from the data (:func:`settle_constant`: one time
 constant for every level's approach through h, five of them left out of each level); what remains of a level,
 when at least 20 samples, goes to :func:`hwid.identify.steady.steady_levels` (any transient left
-found from the data again, batch-means standard errors); shorter ones by extrapolating their
+found from the data again, batch-means standard errors; what is left of the approach after the cut
+taken out of the average, :func:`_transient_corrected`); shorter ones by extrapolating their
 approach with the common time constant (:func:`_extrapolated`), or from their steady tail when it
 is evident (spread within two output quanta or three noise standard deviations, the noise from the
 levels' successive differences, over the last half or all after the settle cut; :func:`_short_level`);
@@ -43,7 +44,10 @@ Fit: weighted least squares on ``(X_k - h_bar(v_k)) / se_k``; h_bar's coefficien
 ``h_bar(0) = 0``) solved for at every step (variable projection); type and degree chosen by the
 criterion of :mod:`hwid.identify.whole` (BIC's charge on F and the nuisances, AIC's on h_bar).
 Intervals: 95 %, Gauss-Newton with the standard errors as given, widened by ``sqrt(chi2 / dof)``
-when that exceeds 1 (the Birge ratio); when the chi-square says the
+when that exceeds 1 (the Birge ratio); those of d+, S^d, d- and the dead band from the chi-square's
+profile with the same widening (:mod:`hwid.identify.history_profile`: F's recursion has corners in
+the borders, where a Gauss-Newton curvature is one side's), a side the profile does not close inside
+the search range reported undetermined; when the chi-square says the
 model does not reach the levels' own noise (p < 0.01) the fit is a **misfit** and the result says
 so (``misfit: true``), it is not printed as
 if sound.
@@ -57,7 +61,7 @@ import numpy as np
 from scipy import optimize, special
 
 from hwid import HwidError
-from hwid.identify import determinable, disturbed, readings
+from hwid.identify import determinable, disturbed, history_profile, readings
 from hwid.identify.joint_fit import numeric_jacobian
 from hwid.identify.result import HistoryResult, Level
 from hwid.identify.steady import steady_levels
@@ -91,7 +95,10 @@ def settled_levels(records, resolution: float | None = None) -> tuple[list[Level
     steady = {}
     if long:
         st = steady_levels([np.asarray(r.y[s["start"] + cut:s["stop"]], float) for r, s in long])
-        for (r, s), mean, se, n in zip(long, st.mean, st.se, st.n):
+        for (r, s), mean, se, n, first, ok in zip(long, st.mean, st.se, st.n, st.first, st.settled):
+            if ok:      # what is left of the approach after the cut, taken out of the average
+                mean, se = _transient_corrected(np.asarray(r.y[s["start"]:s["stop"]], float), tau,
+                                                cut + int(first), float(mean), float(se))
             steady[r.name, s["start"]] = (float(mean), float(se), int(n))
         warns += list(st.warnings)
     levels: list[Level] = []
@@ -233,6 +240,32 @@ def _approach(n: int, tau: float) -> np.ndarray:
     return np.column_stack([np.ones(n), e, e * e])
 
 
+def _transient_corrected(y: np.ndarray, tau: float, first: int, mean: float, se: float,
+                         skip: int = 1) -> tuple[float, float]:
+    """``(X, se)`` of a settled level whose samples from ``first`` on were averaged to ``mean`` (with
+    standard error ``se``), less what remains of its approach there: :func:`_approach` with the
+    levels' common ``tau`` fitted to the whole level from its second sample, and its transient
+    columns' average over the averaged samples taken off.
+
+    A cut of :data:`SETTLE_TAUS` time constants leaves ``exp(-5)`` of a step in the first averaged
+    sample: of a 2-unit step behind noise of 0.01 it biases a 100-sample average by about one of its
+    standard errors, towards where the level came from (levels approached from below low, from above
+    high), which moves the borders and not the chi-square. ``X = w^T y`` is linear in the samples, so
+    its standard error is ``sqrt(lrv w^T w)`` with ``lrv = n se^2`` the long-run noise variance the
+    average's standard error was built on."""
+    x = y[skip:]
+    start = first - skip
+    if tau <= 0 or x.size < 8 or not 0 <= start < x.size:
+        return mean, se
+    a = _approach(x.size, tau)
+    pinv = np.linalg.pinv(a)                         # (3, N): the approach's coefficients per sample
+    m = a[start:, 1:].mean(axis=0)                   # the transient columns' average over the kept samples
+    w = -(m @ pinv[1:])
+    w[start:] += 1.0 / (x.size - start)
+    lrv = se * se * (x.size - start)
+    return float(w @ x), float(np.sqrt(lrv * float(w @ w)))
+
+
 def _robust_sigma(segments) -> float:
     """The output noise's standard deviation from successive differences inside the levels (median
     absolute difference: steps, transients and pushes inside a level do not inflate it)."""
@@ -262,13 +295,17 @@ def _short_level(y: np.ndarray, q: float | None, sigma: float, cut: int | None =
     """``(mean, se, n)`` of a short level's steady tail when it has one: the longest run of its last
     samples whose spread stays within two output quanta or three noise standard deviations, when
     that run holds at least 3 samples and covers the level's last half or all of it after the
-    settle cut ``cut`` (:data:`SETTLE_TAUS` of the levels' common time constant); else None."""
+    settle cut ``cut`` (:data:`SETTLE_TAUS` of the levels' common time constant) when the level
+    outlasts that cut; else None. (A level shorter than the cut, with only its last few samples
+    within the tolerance, is still on its approach: on holds of 2-6 time constants such tails were
+    read 16-24 standard errors short of the settled output.)"""
     tol = max(2.0 * (q or 0.0), 3.0 * sigma)
     if tol == 0.0 or y.size < 3:
         return None
     lo, hi = np.minimum.accumulate(y[::-1]), np.maximum.accumulate(y[::-1])
     n = int(np.argmax(np.r_[hi - lo > tol, True]))        # samples from the end within tol
-    need = y.size - y.size // 2 if cut is None else min(y.size - y.size // 2, y.size - cut)
+    # a level no longer than the settle cut has no part after it: its last half must be flat
+    need = y.size - y.size // 2 if cut is None or cut >= y.size else min(y.size - y.size // 2, y.size - cut)
     if n < max(3, need):
         return None
     tail = y[y.size - n:]
@@ -328,7 +365,8 @@ class HistoryFit:
         theta, verdict, note = _anchored(prob, theta, width)
         self.problem_, self.theta_, self.design_, self.verdict_ = prob, theta, des, verdict
         res = self._result(prob, theta, tuple(table), list(warnings) + ([note] if note else []))
-        self.result_ = _honest(res, des, prob, theta, len(self.types) > 1, verdict)
+        res, unbounded = _profiled(res, prob, theta, width)
+        self.result_ = _honest(res, des, prob, theta, len(self.types) > 1, verdict, unbounded)
         return self
 
     @staticmethod
@@ -402,14 +440,47 @@ def _anchored(prob: "_Problem", theta, width: float):
     return moved, verdict, verdict.note(dp)
 
 
+def _profiled(res: HistoryResult, prob: "_Problem", theta, width: float) -> tuple[HistoryResult, dict]:
+    """``res`` with the 95 % intervals of d^+, S^d, d^- and the dead band from the chi-square's profile
+    (:mod:`hwid.identify.history_profile`: F's recursion has corners in the borders, where the
+    Gauss-Newton interval takes one side's curvature), the rise ``z^2`` times the Birge ratio the
+    covariance is widened by; and, per quantity whose profile does not rise that far inside its
+    search range on a side, the reason it is not bounded."""
+    lo, hi = prob.bounds(width)
+    z = special.ndtri(0.975)
+    rise = z * z * max(1.0, res.chi2 / max(res.dof, 1))
+    band = res.d_plus - res.d_minus
+    coords = {      # quantity: (coordinate, free parameters' indices, Gauss-Newton sd there, back-transform)
+        "d_plus": (history_profile.component(0, lo[0], hi[0]), 0, 1.0, float),
+        "slope_down": (history_profile.component(1, lo[1], hi[1]), 1, 1.0 / res.slope_down, np.exp),
+        "dead_band": (history_profile.component(2, lo[2], hi[2]), 2, 1.0 / band, np.exp),
+        "d_minus": (history_profile.lower_border(lo[0] - np.exp(hi[2]), hi[0] - np.exp(lo[2])), 0, 1.0, float)}
+    ci, unbounded = dict(res.ci), {}
+    for name, (coord, fixed, scale, back) in coords.items():
+        a, b = ci[name]
+        step = scale * (b - a) / (2 * z)
+        if not np.isfinite(step) or step <= 0:
+            continue        # a zero-width or broken interval: determinable.interval_flaw reports it
+        lo_p, hi_p = history_profile.interval(prob.residual, np.asarray(theta, float), coord, rise, step,
+                                              np.delete(lo, fixed), np.delete(hi, fixed))
+        if lo_p is None or hi_p is None:
+            unbounded[name] = ("the levels do not bound it: the chi-square rises by less than "
+                               f"{rise:.3g} up to the {'lower' if lo_p is None else 'upper'} edge of its search range")
+            continue
+        ci[name] = (float(back(lo_p)), float(back(hi_p)))
+    return replace(res, ci=ci), unbounded
+
+
 def _honest(res: HistoryResult, des, prob: "_Problem", theta, types_tried: bool,
-            verdict: "readings.Verdict | None" = None) -> HistoryResult:
+            verdict: "readings.Verdict | None" = None, unbounded: dict | None = None) -> HistoryResult:
     """``res`` with every parameter the levels cannot determine (:mod:`hwid.identify.determinable`;
     the borders and h_bar also where h_bar's root-shifted readings leave them open,
     :mod:`hwid.identify.readings`), every interval of zero width or not finite
     (:func:`~hwid.identify.determinable.interval_flaw`) and every estimate at the edge of its search
     range reported as undetermined: interval None and the reason, one warning line each."""
     why = des.undetermined(prob.degree)
+    for name, reason in (unbounded or {}).items():
+        why.setdefault(name, reason)
     if verdict is not None and not verdict.determined:
         params = [*res.h_coefficients[1:], res.d_plus, res.slope_down, res.d_minus]
         res = replace(res, readings=tuple(verdict.to_dicts(prob.type, params, np.asarray(res.cov, float))))
