@@ -14,7 +14,10 @@ A plant that runs experiments (simulated or live):
    (:func:`sines_off_the_rails`);
 3. the two stages' model, or, where they cannot stand for the plant (an unsafe pre-compensator,
    :func:`g_undetermined`), the whole model fitted to the same records with the input's slew rate
-   (:func:`hwid.identify.whole_rate.fit_rate_first`).
+   (:func:`hwid.identify.whole_rate.fit_rate_first`);
+4. either judged on its own records (:func:`hwid.adequacy.assess`): a misfit is fitted again whole
+   from itself, and the fit that reaches the records replaces it (:func:`stages_or_whole`,
+   :func:`_whole_again`).
 
 A recorded plant: the records split into a fit part and a held-out part (:mod:`hwid.identify.split`);
 stage 1 from the fit part's levels starts the borders of the whole fit on the fit part (where it
@@ -349,33 +352,42 @@ def stages_or_whole(cfg, ident: Identification, out, echo=print) -> Identificati
     range, h is extrapolated there (the paper's plant: a quintic h read on [-0.90, 0.70] and run to
     +-0.99 by the slowest sine missed it by 3x the noise, its own records by 2.3x). Their model is
     judged on its own records (:func:`hwid.adequacy.assess`); where it is a misfit, the whole fit
-    started from it (:func:`_whole_beside`, on the staircases and the sines' last periods) is judged
-    on the same records the same way, and replaces it where it is adequate or its RMS is at most
-    :data:`~hwid.identify.defaults.CLEARLY_BETTER` of theirs; the route then says so. With
+    started from it (:func:`hwid.identify.whole_again.fits_from`, on the staircases and the sines'
+    last periods) is judged on the same records the same way, and replaces it where it is adequate or its RMS is at most
+    :data:`~hwid.identify.defaults.CLEARLY_BETTER` of theirs; the route then says so. A model that
+    cannot be judged on its records (its G so slow that nothing is left after the burn-in, on a
+    floor the data determine) is replaced by an adequate whole fit only. With
     ``identification.whole.enabled`` the whole fit runs beside in any case (``whole.h5``). A model
     behind an input dead zone (stage 1's, :func:`deadzone_behind`) stays the stages': the whole fit
     has no dead zone ahead of F."""
     from hwid import adequacy
     from hwid.identify.defaults import CLEARLY_BETTER
     stages = adequacy.assess(ident.model, ident.records)
-    switch = stages.verdict == "misfit" and ident.model.actuator is None
-    if not (switch or cfg.identification.whole.enabled):
-        return ident
-    if switch:
-        echo(f"the two stages' model misses its own records ({stages.reason}): the whole model is fitted "
-             "from it to the staircases and the sines' last periods")
-    beside = _whole_beside(cfg, ident, ident.model, out, echo)
+    # undetermined on a determined floor: too few samples after the burn-in of a G so slow that
+    # its records hold nothing past it (a folded h read as a line by stage 1: a pole at 0.09 rad/s
+    # for the plant's 1.5, 148x the floor on the diagnosis's records)
+    unjudged = stages.verdict == "undetermined" and stages.floor.determined
+    switch = (stages.verdict == "misfit" or unjudged) and ident.model.actuator is None
     if not switch:
-        return beside
-    whole_model = beside.whole.model()
-    whole = adequacy.assess(whole_model, ident.records)
-    if whole.verdict != "adequate" and not whole.rms_fit <= CLEARLY_BETTER * stages.rms_fit:
+        return _whole_beside(cfg, ident, ident.model, out, echo) if cfg.identification.whole.enabled else ident
+    echo(f"the two stages' model {'cannot be judged on' if unjudged else 'misses'} its own records "
+         f"({stages.reason}): the whole model is fitted from it to the staircases and the sines' last periods")
+    from hwid.identify.whole import fit_records
+    from hwid.identify.whole_again import fits_from
+    t0 = time.perf_counter()
+    whole, fitter = fits_from(cfg, ident.model, fit_records(list(ident.nonlinear_records) + list(ident.linear_records)),
+                              lambda res: adequacy.assess(res.model(), ident.records))
+    res, paths = _said(cfg, fitter, out, echo, t0, role="beside")
+    beside = replace(ident, whole=res, paths={**ident.paths, **paths})
+    whole_model = res.model()
+    if whole.verdict != "adequate" and (unjudged or not whole.rms_fit <= CLEARLY_BETTER * stages.rms_fit):
         note = (f"the whole model fitted from the stages' is no better on their records (RMS {whole.rms_fit:.4g} "
                 f"for their {stages.rms_fit:.4g}): the model stays the stages'")
         echo(note)
         return replace(beside, notes=beside.notes + (note,))
-    why = (f"the two stages' model misses its own records (RMS {stages.rms_fit:.4g} = {stages.ratio:.3g} x the "
-           f"noise floor); the whole model fitted from it reaches {whole.rms_fit:.4g} = {whole.ratio:.3g} x")
+    why = ((f"the two stages' model cannot be judged on its own records ({stages.reason})" if unjudged else
+            f"the two stages' model misses its own records (RMS {stages.rms_fit:.4g} = {stages.ratio:.3g} x the "
+            "noise floor)") + f"; the whole model fitted from it reaches {whole.rms_fit:.4g} = {whole.ratio:.3g} x")
     echo(f"{why}: the model is the whole fit's")
     if out is not None:        # whole.h5 is now the run's model, not a fit beside it
         from hwid.results import write_whole
@@ -491,21 +503,15 @@ def _whole_again(cfg, ident: Identification, out, echo=print) -> Identification:
     A rate the records need stays: the fits without it are then no better."""
     from hwid import adequacy
     from hwid.identify.defaults import CLEARLY_BETTER
-    from hwid.identify.whole import WholeModelFit
+    from hwid.identify.whole_again import fits_from
     first = adequacy.assess(ident.model, ident.records, starts=ident.starts or None)
     if first.verdict != "misfit":
         return ident
     echo(f"the whole model misses its own records ({first.reason}): fitted again from it without its actuator")
     t0 = time.perf_counter()
-    records, bare = list(ident.records), ident.model.without_actuator()
-    tried = []
-    for fitter in (lambda: WholeModelFit.from_config(cfg).fit(records, start=bare),
-                   lambda: WholeModelFit.from_config(cfg, staged=True).fit(records, borders=bare.input)):
-        done = fitter()
-        tried.append((adequacy.assess(done.result_.model(), records, starts=done.result_.initial_states), done))
-        if tried[-1][0].verdict == "adequate":
-            break
-    again, fitter = min(tried, key=lambda t: t[0].rms_fit if np.isfinite(t[0].rms_fit) else np.inf)
+    records = list(ident.records)
+    again, fitter = fits_from(cfg, ident.model.without_actuator(), records,
+                              lambda res: adequacy.assess(res.model(), records, starts=res.initial_states))
     if again.verdict != "adequate" and not again.rms_fit <= CLEARLY_BETTER * first.rms_fit:
         note = (f"the whole fit from it without its actuator is no better on its records (RMS {again.rms_fit:.4g} "
                 f"for {first.rms_fit:.4g}): the model keeps its actuator")
