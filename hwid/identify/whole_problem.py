@@ -316,7 +316,7 @@ def best_states(prob: Problem, theta, rest_at_gear: bool = False) -> np.ndarray:
 def _rest_at_gear(prob: Problem, theta, only: int | None = None) -> np.ndarray:
     """``theta`` with each record's G at rest at its initial gear (``only``: that record alone)."""
     theta = np.array(theta, float)
-    f, _, states, _ = prob._unpacked(theta)
+    states = prob._unpacked(theta)[2]
     for i, (gear, _) in enumerate(states):
         if only is None or i == only:
             theta[prob.states_at + 2 * i + 1] = gear
