@@ -511,8 +511,10 @@ def settling_time(model) -> float:
 
 
 def _scored(model, records, starts: dict | None, settle_s: float) -> list[tuple]:
-    """``(residual, u)`` on each record's scored samples: all of it from a given start, else after a
-    burn-in of 1.5 settling times and the first fifth (the rig's state before the record)."""
+    """``(residual, u)`` on each record's scored samples: all of it from a given start (the gear, G's
+    rest level and, with a slewing actuator, its position: a Backlash-Inverse's output follows
+    wherever the slew from there takes it), else after a burn-in of 1.5 settling times and the
+    first fifth (the rig's state before the record)."""
     out = []
     for r in records:
         u, y = np.asarray(r.u, float), np.asarray(r.y, float)
@@ -521,7 +523,7 @@ def _scored(model, records, starts: dict | None, settle_s: float) -> list[tuple]
         st = (starts or {}).get(r.name)
         with np.errstate(all="ignore"):
             if st is not None:
-                x, k0 = model.simulate(u, r.dt, gear=st["gear"], rest=st["rest"]).x, 0
+                x, k0 = model.simulate(u, r.dt, gear=st["gear"], rest=st["rest"], position=st.get("position")).x, 0
             else:
                 x = model.simulate(u, r.dt).x
                 burn = 1.5 * settle_s / r.dt if np.isfinite(settle_s) else 0.0

@@ -398,6 +398,14 @@ def sensor_saturation_paper(u, dt):
     return np.clip(r.paper(np.asarray(u, float), dt) + r.noise(len(u)), t["y_lo"], t["y_hi"])
 
 
+def paper_kept(u, dt):
+    """The paper's plant on a rig never stopped: gear and G's state carry over from call to call."""
+    if "paper_kept" not in _RIGS:
+        _RIGS["paper_kept"] = _PaperRig(zlib.crc32(b"paper_kept"))
+    r = _RIGS["paper_kept"]
+    return r.paper(np.asarray(u, float), dt) + r.noise(len(u))
+
+
 def paper_at_rest(u, dt):
     """The paper's plant on a rig parked between calls: at every call the gear rests against a
     border at ``u[0]`` drawn at random and G is at rest there (nothing carried over)."""

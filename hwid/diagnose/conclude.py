@@ -610,7 +610,8 @@ def identification_error(model, records, dt: float, settle_s: float, sigma: floa
     """How far the identified model is from the plant on the experiments it was identified from.
 
     Each record is simulated from its own input: from the start the identification estimated for
-    it (``starts``: ``{name: {"gear", "rest"}}``, the whole fit's), all of it; otherwise from the
+    it (``starts``: ``{name: {"gear", "rest"}}`` and a slewing actuator's ``"position"``, the whole
+    fit's), all of it; otherwise from the
     default start, with the first 1.5 settling times and the first fifth of the record (where the
     rig's state before the record still matters) skipped. ``excess`` is
     the RMS above the noise floor ``sigma``. It is reported, not used as a floor: those records carry
@@ -623,7 +624,7 @@ def identification_error(model, records, dt: float, settle_s: float, sigma: floa
             continue
         st = (starts or {}).get(r.name)
         if st is not None:
-            x, k0 = model.simulate(u, dt, gear=st["gear"], rest=st["rest"]).x, 0
+            x, k0 = model.simulate(u, dt, gear=st["gear"], rest=st["rest"], position=st.get("position")).x, 0
         else:
             x = ModelSim(model, dt, [u]).x[0]
             k0 = max(int(round(1.5 * settle_s / dt)), u.size // 5)

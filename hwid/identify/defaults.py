@@ -42,3 +42,7 @@ POLISH_BEST = 4
 #: RAIL_TRIES times (:func:`hwid.identify.path.sines_off_the_rails`)
 RAIL_SHRINK = 0.7
 RAIL_TRIES = 3
+#: a whole model started from the two stages' that is a misfit too replaces theirs only where its RMS
+#: on the same records is at most this share of theirs (:func:`hwid.identify.path.stages_or_whole`):
+#: a model clearly nearer its records, not one that moved within the noise of the comparison
+CLEARLY_BETTER = 0.9

@@ -14,7 +14,10 @@ A plant that runs experiments (simulated or live):
    (:func:`sines_off_the_rails`);
 3. the two stages' model, or, where they cannot stand for the plant (an unsafe pre-compensator,
    :func:`g_undetermined`), the whole model fitted to the same records with the input's slew rate
-   (:func:`hwid.identify.whole_rate.fit_rate_first`).
+   (:func:`hwid.identify.whole_rate.fit_rate_first`);
+4. either judged on its own records (:func:`hwid.adequacy.assess`): a misfit is fitted again whole
+   from itself, and the fit that reaches the records replaces it (:func:`stages_or_whole`,
+   :func:`_whole_again`).
 
 A recorded plant: the records split into a fit part and a held-out part (:mod:`hwid.identify.split`);
 stage 1 from the fit part's levels starts the borders of the whole fit on the fit part (where it
@@ -338,9 +341,60 @@ def _from_plant(cfg, plant, out: Path | None, echo) -> Identification:
     ident = Identification(model, "stages", "the two stages identified F, h and G", records=tuple(records),
                            notes=tuple(notes + stage_notes), u_range=u_range,
                            w_range=tuple(float(x) for x in nonlinear.w_range), **base)
-    if cfg.identification.whole.enabled:
-        ident = _whole_beside(cfg, ident, model, out, echo)
-    return ident
+    return stages_or_whole(cfg, ident, out, echo)
+
+
+def stages_or_whole(cfg, ident: Identification, out, echo=print) -> Identification:
+    """The two stages' model, or the whole model fitted from it where theirs misses its own records.
+
+    The stages read h from the staircases' levels and G from the sines' harmonics; neither is
+    fitted to the records as a whole, and where the sines drive G's output beyond the levels'
+    range, h is extrapolated there (the paper's plant: a quintic h read on [-0.90, 0.70] and run to
+    +-0.99 by the slowest sine missed it by 3x the noise, its own records by 2.3x). Their model is
+    judged on its own records (:func:`hwid.adequacy.assess`); where it is a misfit, the whole fit
+    started from it (:func:`hwid.identify.whole_again.fits_from`, on the staircases and the sines'
+    last periods) is judged on the same records the same way, and replaces it where it is adequate or its RMS is at most
+    :data:`~hwid.identify.defaults.CLEARLY_BETTER` of theirs; the route then says so. A model that
+    cannot be judged on its records (its G so slow that nothing is left after the burn-in, on a
+    floor the data determine) is replaced by an adequate whole fit only. With
+    ``identification.whole.enabled`` the whole fit runs beside in any case (``whole.h5``). A model
+    behind an input dead zone (stage 1's, :func:`deadzone_behind`) stays the stages': the whole fit
+    has no dead zone ahead of F."""
+    from hwid import adequacy
+    from hwid.identify.defaults import CLEARLY_BETTER
+    stages = adequacy.assess(ident.model, ident.records)
+    # undetermined on a determined floor: too few samples after the burn-in of a G so slow that
+    # its records hold nothing past it (a folded h read as a line by stage 1: a pole at 0.09 rad/s
+    # for the plant's 1.5, 148x the floor on the diagnosis's records)
+    unjudged = stages.verdict == "undetermined" and stages.floor.determined
+    switch = (stages.verdict == "misfit" or unjudged) and ident.model.actuator is None
+    if not switch:
+        return _whole_beside(cfg, ident, ident.model, out, echo) if cfg.identification.whole.enabled else ident
+    echo(f"the two stages' model {'cannot be judged on' if unjudged else 'misses'} its own records "
+         f"({stages.reason}): the whole model is fitted from it to the staircases and the sines' last periods")
+    from hwid.identify.whole import fit_records
+    from hwid.identify.whole_again import fits_from
+    t0 = time.perf_counter()
+    whole, fitter = fits_from(cfg, ident.model, fit_records(list(ident.nonlinear_records) + list(ident.linear_records)),
+                              lambda res: adequacy.assess(res.model(), ident.records))
+    res, paths = _said(cfg, fitter, out, echo, t0, role="beside")
+    beside = replace(ident, whole=res, paths={**ident.paths, **paths})
+    whole_model = res.model()
+    if whole.verdict != "adequate" and (unjudged or not whole.rms_fit <= CLEARLY_BETTER * stages.rms_fit):
+        note = (f"the whole model fitted from the stages' is no better on their records (RMS {whole.rms_fit:.4g} "
+                f"for their {stages.rms_fit:.4g}): the model stays the stages'")
+        echo(note)
+        return replace(beside, notes=beside.notes + (note,))
+    why = ((f"the two stages' model cannot be judged on its own records ({stages.reason})" if unjudged else
+            f"the two stages' model misses its own records (RMS {stages.rms_fit:.4g} = {stages.ratio:.3g} x the "
+            "noise floor)") + f"; the whole model fitted from it reaches {whole.rms_fit:.4g} = {whole.ratio:.3g} x")
+    echo(f"{why}: the model is the whole fit's")
+    if out is not None:        # whole.h5 is now the run's model, not a fit beside it
+        from hwid.results import write_whole
+        write_whole(out / WHOLE, cfg, beside.whole, "model")
+    w = np.concatenate([whole_model.input.apply(r.u) for r in ident.records])
+    return replace(beside, model=whole_model, route="whole", why=why, notes=beside.notes + (why,),
+                   w_range=(float(w.min()), float(w.max())))
 
 
 def _behind(ahead):
@@ -424,11 +478,54 @@ def _whole_instead(cfg, records, out, why: str, echo, notes: list, base: dict) -
     model = res.model()
     w = np.concatenate([model.input.apply(model.actuate(r.u, r.dt)) for r in records])   # the w the records reached
     u = np.concatenate([r.u for r in records])
-    return Identification(model, "whole", f"{why}: the whole model, fitted with the input's slew rate",
-                          records=tuple(records), starts=dict(res.initial_states),
-                          notes=tuple(notes + [why] + list(res.warnings)), whole=res,
-                          u_range=(float(u.min()), float(u.max())), w_range=(float(w.min()), float(w.max())),
-                          **{**base, "paths": {**base.get("paths", {}), **paths}})
+    ident = Identification(model, "whole", f"{why}: the whole model, fitted with the input's slew rate",
+                           records=tuple(records), starts=dict(res.initial_states),
+                           notes=tuple(notes + [why] + list(res.warnings)), whole=res,
+                           u_range=(float(u.min()), float(u.max())), w_range=(float(w.min()), float(w.max())),
+                           **{**base, "paths": {**base.get("paths", {}), **paths}})
+    return _whole_again(cfg, ident, out, echo)
+
+
+def _whole_again(cfg, ident: Identification, out, echo=print) -> Identification:
+    """The whole model fitted with the input's slew rate from the start (:func:`_whole_instead`), or,
+    where it misses its own records, a whole fit without the actuator started from it.
+
+    The fit with a rate from the start descends from a few joint starts of borders, rate and memory
+    at h_bar's highest degree; where the rate it finds is only a stand-in, the fits without it reach
+    the records: first from its F, G and h (G's structure, h_bar's neighbouring degrees; a
+    Backlash-Inverse before a folded h slewing at 120 units/s across a range of 3 went from 1.18x
+    the noise on its own records to 1.03x), then, where that is still a misfit, from its borders
+    with every G structure and degree (:meth:`~hwid.identify.whole.WholeModelFit.fit` with
+    ``borders``, staged: one whose G had kept a pole-zero pair at 0.36 / 0.38 rad/s for the plant's
+    pole at 9.8 rad/s went from 2.9x to 0.98x). Each judged on the same records from its own
+    starts (:func:`hwid.adequacy.assess`); the best kept where adequate or its RMS is at most
+    :data:`~hwid.identify.defaults.CLEARLY_BETTER` of the first's, as in :func:`stages_or_whole`.
+    A rate the records need stays: the fits without it are then no better."""
+    from hwid import adequacy
+    from hwid.identify.defaults import CLEARLY_BETTER
+    from hwid.identify.whole_again import fits_from
+    first = adequacy.assess(ident.model, ident.records, starts=ident.starts or None)
+    if first.verdict != "misfit":
+        return ident
+    echo(f"the whole model misses its own records ({first.reason}): fitted again from it without its actuator")
+    t0 = time.perf_counter()
+    records = list(ident.records)
+    again, fitter = fits_from(cfg, ident.model.without_actuator(), records,
+                              lambda res: adequacy.assess(res.model(), records, starts=res.initial_states))
+    if again.verdict != "adequate" and not again.rms_fit <= CLEARLY_BETTER * first.rms_fit:
+        note = (f"the whole fit from it without its actuator is no better on its records (RMS {again.rms_fit:.4g} "
+                f"for {first.rms_fit:.4g}): the model keeps its actuator")
+        echo(note)
+        return replace(ident, notes=ident.notes + (note,))
+    res, paths = _said(cfg, fitter, out, echo, t0)
+    model = res.model()
+    why = (f"{ident.why}; it missed its own records (RMS {first.rms_fit:.4g} = {first.ratio:.3g} x the noise "
+           f"floor), the whole fit from it without its actuator reaches {again.rms_fit:.4g} = {again.ratio:.3g} x")
+    echo(why)
+    w = np.concatenate([model.input.apply(r.u) for r in ident.records])
+    return replace(ident, model=model, why=why, starts=dict(res.initial_states), whole=res,
+                   notes=ident.notes + (why,) + tuple(res.warnings), w_range=(float(w.min()), float(w.max())),
+                   paths={**ident.paths, **paths})
 
 
 def _whole_from_stages(cfg, start, records, out, echo, notes, u_range, base) -> Identification:

@@ -359,7 +359,8 @@ class _Search:
         fitter, records, delay = self.fitter, self.records, self.fitter.delay
         if first is None:
             first = best_states(Problem(records, kind, structure, max(degs), delay),
-                                fitter.start_values(records, kind, structure, self.start, self.borders))
+                                fitter.start_values(records, kind, structure, self.start, self.borders),
+                                rest_at_gear=self.start is not None)
         theta0, rows = None, []
         for degree in degs:
             prob = Problem(records, kind, structure, degree, delay)

@@ -280,13 +280,21 @@ def criterion(rss: float, n: int, k: int, degree: int) -> float:
     return float(n * np.log(rss / n) + (k - degree) * np.log(n) + 2 * degree)
 
 
-def best_states(prob: Problem, theta) -> np.ndarray:
+def best_states(prob: Problem, theta, rest_at_gear: bool = False) -> np.ndarray:
     """``theta`` with each experiment's initial gear put where it fits best of: against the lower
     border, in the middle of the play, against the upper one (a Backlash-Inverse: nine places
     across its branches' range; one experiment at a time). The gear's
-    place enters through a tanh: started on the wrong side, the search stalls where the tanh is flat."""
+    place enters through a tanh: started on the wrong side, the search stalls where the tanh is flat.
+
+    ``rest_at_gear``: each place tried with G at rest at the gear's value there (G(0) = 1), the
+    state a record starts in after a hold; for a start from a model (the two stages), whose F
+    places the gear: G left at rest at the input's level instead put a staircase's first samples
+    half a play or more away, where the start's h_bar, extrapolated, spoilt the start (the paper's
+    plant: an RMS of 0.42 at the start for the stages' 0.023)."""
     theta = np.array(theta, float)
     j = prob.states_at
+    if rest_at_gear:
+        theta = _rest_at_gear(prob, theta)
     best = float(np.sum(prob.residual(theta) ** 2))
     # a Backlash-Inverse's start spans its branches' whole range (Problem.unpack): finer steps
     places = (-6.0, 0.0, 6.0) if prob.type == "backlash" else \
@@ -296,10 +304,22 @@ def best_states(prob: Problem, theta) -> np.ndarray:
         for frac in places:
             trial = theta.copy()
             trial[j] = frac
+            if rest_at_gear:
+                trial = _rest_at_gear(prob, trial, only=(j - prob.states_at) // 2)
             cost = float(np.sum(prob.residual(trial) ** 2))
             if cost < best:
                 best, theta = cost, trial
         j += 2
+    return theta
+
+
+def _rest_at_gear(prob: Problem, theta, only: int | None = None) -> np.ndarray:
+    """``theta`` with each record's G at rest at its initial gear (``only``: that record alone)."""
+    theta = np.array(theta, float)
+    states = prob._unpacked(theta)[2]
+    for i, (gear, _) in enumerate(states):
+        if only is None or i == only:
+            theta[prob.states_at + 2 * i + 1] = gear
     return theta
 
 
