@@ -317,12 +317,14 @@ def hold_segments(u: np.ndarray, min_samples: int = 2 * MIN_BLOCK) -> list[tuple
     return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:]) if b - a >= min_samples]
 
 
-def _holds(records) -> tuple | None:
-    """The floor from the settled half of each hold: ``(var, dof, kappa, detail, set aside)`` or None."""
+def _holds(records, off_rails: tuple = ()) -> tuple | None:
+    """The floor from the settled half of each hold: ``(var, dof, kappa, detail, set aside)`` or None;
+    a hold that reads a rail of ``off_rails`` is left out (a sensor there reads no noise)."""
     settled = []
     for r in records:
         y = np.asarray(r.y, float)
-        settled += [y[(a + b) // 2:b] for a, b in hold_segments(r.u) if b - (a + b) // 2 >= MIN_BLOCK]
+        settled += [y[(a + b) // 2:b] for a, b in hold_segments(r.u) if b - (a + b) // 2 >= MIN_BLOCK
+                    and not np.isin(y[(a + b) // 2:b], off_rails).any()]
     settled, lines = _without_lines(settled, records)
     parts = [b for s in settled for b in _blocks(s)]
     found = correlated_floor(parts)
@@ -366,7 +368,7 @@ def quiet(u, n: int, window: int) -> np.ndarray:
     return m
 
 
-def _smoother(records) -> tuple | None:
+def _smoother(records, off_rails: tuple = ()) -> tuple | None:
     """The floor from a local quartic's residual, its variance corrected by ``1 - h_0``, where the
     output is smooth on the quartic's window (:func:`quiet`): at a step, a servo that follows it
     within a sample or two leaves a residual that is its own motion (STS3215 log halves: 6.6-8.5
@@ -379,7 +381,7 @@ def _smoother(records) -> tuple | None:
             continue
         h0, per_sample = _smoother_kernel(window)
         res = y - signal.savgol_filter(y, window, SMOOTHER_ORDER)
-        ok = quiet(getattr(r, "u", None), y.size, window)
+        ok = quiet(getattr(r, "u", None), y.size, window) & ~np.isin(y, off_rails)
         ok[:window // 2] = ok[y.size - window // 2:] = False
         for a, b in _runs(ok):
             for blk in _blocks(res[a:b]):
@@ -427,10 +429,11 @@ def _spread(outputs) -> float:
     return float(np.std(np.concatenate(parts))) if parts else 0.0
 
 
-def estimate_floor(records, quantum: float = 0.0) -> NoiseFloor:
+def estimate_floor(records, quantum: float = 0.0, off_rails: tuple = ()) -> NoiseFloor:
     """The output-noise standard deviation from the data alone: repeats (identical inputs) where
     there are any; else the scatter within settled holds; else a local high-order smoother's
-    residual; never below the quantum ``q / sqrt(12)``, never above the output's spread.
+    residual; never below the quantum ``q / sqrt(12)``, never above the output's spread. Holds
+    and smooth stretches that read a sensor's rail (``off_rails``) are left out.
 
     Raises ``ValueError`` when no record has an output."""
     records = [r for r in records if getattr(r, "y", None) is not None and np.size(r.y) > 0]
@@ -439,7 +442,8 @@ def estimate_floor(records, quantum: float = 0.0) -> NoiseFloor:
     q = output_quantum(records, quantum)
     qf = q / np.sqrt(12.0)
     spread = output_spread(records)
-    for source, how in (("repeats", _repeats), ("holds", _holds), ("smoother", _smoother)):
+    for source, how in (("repeats", _repeats), ("holds", lambda rs: _holds(rs, off_rails)),
+                        ("smoother", lambda rs: _smoother(rs, off_rails))):
         found = how(records)
         if found is not None:
             var, dof, kappa, detail, aside = found
@@ -510,11 +514,12 @@ def settling_time(model) -> float:
     return float(4.0 / slow + model.linear.delay) if np.isfinite(slow) and slow > 0 else float(model.linear.delay)
 
 
-def _scored(model, records, starts: dict | None, settle_s: float) -> list[tuple]:
+def _scored(model, records, starts: dict | None, settle_s: float, off_rails: tuple = ()) -> list[tuple]:
     """``(residual, u)`` on each record's scored samples: all of it from a given start (the gear, G's
     rest level and, with a slewing actuator, its position: a Backlash-Inverse's output follows
     wherever the slew from there takes it), else after a burn-in of 1.5 settling times and the
-    first fifth (the rig's state before the record)."""
+    first fifth (the rig's state before the record); samples reading one of ``off_rails`` (a
+    sensor's rails, :mod:`hwid.identify.rails`) left out."""
     out = []
     for r in records:
         u, y = np.asarray(r.u, float), np.asarray(r.y, float)
@@ -528,8 +533,11 @@ def _scored(model, records, starts: dict | None, settle_s: float) -> list[tuple]
                 x = model.simulate(u, r.dt).x
                 burn = 1.5 * settle_s / r.dt if np.isfinite(settle_s) else 0.0
                 k0 = int(max(round(burn), u.size // 5))
-        if k0 < u.size - 10:
-            out.append((y[k0:] - x[k0:], u[k0:], y[k0:]))
+        keep = np.arange(u.size) >= k0
+        for value in off_rails:
+            keep &= y != value
+        if keep.sum() > 10:
+            out.append((y[keep] - x[keep], u[keep], y[keep]))
     return out
 
 
@@ -582,19 +590,21 @@ def _bound(n: int, floor: NoiseFloor, alpha: float) -> float:
 
 
 def assess(model, records, held_out=(), floor: NoiseFloor | None = None, starts: dict | None = None,
-           alpha: float = ALPHA, label: str = "its own records") -> Adequacy:
+           alpha: float = ALPHA, label: str = "its own records", off_rails: tuple = ()) -> Adequacy:
     """Whether ``model`` (an :class:`hwid.model.HWModel`) explains ``records`` (and ``held_out``)
     down to the noise floor: the model's free run on each record (:func:`_scored`), judged by
     :func:`judge`.
 
     ``starts``: ``{record name: {"gear", "rest"}}`` as the whole fit estimates them; records without
     one are scored after a burn-in of 1.5 settling times and the first fifth. ``floor`` None:
-    :func:`estimate_floor` on all records. ``label``: what ``records`` are, for the reason."""
+    :func:`estimate_floor` on all records. ``label``: what ``records`` are, for the reason.
+    ``off_rails``: readings of a sensor's rails, whose samples are not scored (no model of the
+    paper's class clips its output; the identification sets them aside, :mod:`hwid.identify.rails`)."""
     records, held_out = list(records), list(held_out)
     if floor is None:
-        floor = estimate_floor(records + held_out)
+        floor = estimate_floor(records + held_out, off_rails=off_rails)
     settle = settling_time(model)
-    fit, held = _scored(model, records, starts, settle), _scored(model, held_out, starts, settle)
+    fit, held = _scored(model, records, starts, settle, off_rails), _scored(model, held_out, starts, settle, off_rails)
     step = lag_step(records[0].dt, settle) if records else 1
     return judge(fit, floor, held, step, alpha, label)
 

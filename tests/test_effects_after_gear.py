@@ -164,14 +164,12 @@ def test_a_placement_the_fit_experiments_cannot_tell_is_undetermined():
     """Of an effect's forms, one that fits the fit experiments alike (criterion within SAME_FIT)
     and acts elsewhere leaves the place undetermined (interval null, with the reason); one that
     fits clearly worse leaves it as fitted."""
-    from types import SimpleNamespace
-
     from hwid.diagnose.effects_after_gear import OutputHysteresis, OutputHysteresisAfterH
+    from hwid.diagnose.intervals import forms_alike
     from hwid.diagnose.rank import SAME_FIT, EffectFitter
     from hwid.diagnose.verdict import Candidate
 
     n = 1000.0
-    fitter = SimpleNamespace(fit_criterion=lambda c, n_: EffectFitter.fit_criterion(None, c, n_))
 
     def cand(form, gap_fit):
         c = Candidate("output_hysteresis", "output", {"width": 0.1, **form.form_params()}, gap_fit, gap_fit, 0.9,
@@ -184,7 +182,7 @@ def test_a_placement_the_fit_experiments_cannot_tell_is_undetermined():
         other = cand(OutputHysteresisAfterH(), other_gap)
         assert (EffectFitter.fit_criterion(None, other, n) - EffectFitter.fit_criterion(None, best, n) < SAME_FIT) \
             == alike
-        out = EffectFitter._forms_alike(fitter, best, [best, other], n)
+        out = forms_alike(best, [best, other], lambda c: EffectFitter.fit_criterion(None, c, n), SAME_FIT)
         assert out is best and out.intervals["width"] == [0.09, 0.11]
         if alike:
             assert out.intervals["after_h"] is None and "after_h" in out.intervals["undetermined"]

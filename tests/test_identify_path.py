@@ -180,7 +180,8 @@ def test_the_stage_commands_take_the_paths_steps_on_a_log(tmp_path):
     """A recorded log of random levels and a sine of 12 periods (written as :func:`logs.write_log_csv` writes
     one): ``hwid identify-nonlinear`` (``history.h5``) and ``hwid identify-linear --nonlinear DIR``
     (``linear.h5``) give what ``hwid run`` reports beside its model, to the last digit; the truth's
-    dead band lies within stage 1's interval."""
+    dead band lies within 3.29 standard errors of stage 1's estimate (its 99.9 % interval: one log at
+    95 % misses one time in twenty by design; the 95 % coverage is tests/test_history_coverage.py's)."""
     from hwid.pipeline import run
     from hwid.results import read_history, read_linear
     cfg = config.loads(yaml.safe_dump(rigs.small()))
@@ -202,7 +203,8 @@ def test_the_stage_commands_take_the_paths_steps_on_a_log(tmp_path):
                             read_linear(tmp_path / "run" / "linear.h5", cfg).to_dict())
     norm = truth.normalised().input
     lo, hi = hist.ci["dead_band"]
-    assert lo <= norm.d_plus - norm.d_minus <= hi
+    se = (hi - lo) / (2 * 1.959964)
+    assert abs(hist.d_plus - hist.d_minus - (norm.d_plus - norm.d_minus)) <= 3.290527 * se
 
 
 def test_identify_nonlinear_where_stage_1_cannot_be_read_points_to_run(tmp_path):

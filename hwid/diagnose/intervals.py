@@ -90,3 +90,23 @@ def param_intervals(residual, theta, lo, hi, logs, names, kappa_min: float = 1.0
     if why:
         out["undetermined"] = why
     return out
+
+
+def forms_alike(best, fits, criterion, same_fit: float):
+    """``best`` (a :class:`hwid.diagnose.verdict.Candidate`, one of an effect's forms ``fits``) with
+    each form parameter (:meth:`Effect.form_params`: friction's ``fed_back``, the hysteresis's
+    ``after_h``) in which another form that fits the fit experiments alike (its ``criterion`` within
+    ``same_fit`` of ``best``'s) differs marked undetermined in its intervals: the experiments cannot
+    tell where the effect acts, and the next experiment should."""
+    mine = best.fitted.form_params()
+    for other in fits:
+        if other is best or criterion(other) - criterion(best) >= same_fit:
+            continue
+        theirs = other.fitted.form_params()
+        for key in (k for k in mine if k in theirs and theirs[k] != mine[k]):
+            best.intervals = dict(best.intervals or {})
+            best.intervals[key] = None
+            best.intervals.setdefault("undetermined", {})[key] = (
+                f"the fit experiments fit {key} = {mine[key]:g} and {key} = {theirs[key]:g} alike (criteria "
+                f"within {same_fit:g}); {mine[key]:g} is the lower")
+    return best

@@ -13,6 +13,7 @@ import numpy as np
 from hwid import adequacy
 from hwid.diagnose import gap
 from hwid.diagnose.context import Context
+from hwid.identify.rails import rail_values
 
 
 def adequacy_where(ctx: Context) -> str:
@@ -27,12 +28,14 @@ def adequacy_where(ctx: Context) -> str:
 def model_adequacy(ctx: Context) -> adequacy.Adequacy | None:
     """The model's adequacy, its noise floor estimated from the records judged alone
     (:func:`hwid.adequacy.estimate_floor`): an identified model's free run on its identification
-    records (from the starts the identification estimated, where it did); a given model's
+    records (from the starts the identification estimated, where it did; off the sensor's rails,
+    as the identification judged it); a given model's
     predictions on the validation records as the diagnosis simulates them (each from the input
     the plant had before it). None where there are no records."""
     if ctx.identified and ctx.origin.get("records"):
         records = [r for r in ctx.origin["records"] if getattr(r, "y", None) is not None]
-        return adequacy.assess(ctx.sim_model, records, starts=ctx.origin.get("starts")) if records else None
+        return adequacy.assess(ctx.sim_model, records, starts=ctx.origin.get("starts"),
+                               off_rails=rail_values(records)) if records else None
     val = ctx.val
     records = [val.records[i] for i in val.val_idx]
     if not records:

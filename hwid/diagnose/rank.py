@@ -27,7 +27,7 @@ from hwid.diagnose.baseline import cancel_slow_pairs, mirror_rhp_zeros, split_mo
 from hwid.diagnose.gap import correlation_time, rms
 from hwid.diagnose.h_refit import HRefit
 from hwid.diagnose.held_starts import HeldJacobian
-from hwid.diagnose.intervals import param_intervals
+from hwid.diagnose.intervals import forms_alike, param_intervals
 from hwid.diagnose.modelsim import ModelSim, ReblockedSim
 from hwid.diagnose.verdict import Candidate, bic_score, explained_fraction
 from hwid.model import InputNonlinearity
@@ -385,25 +385,7 @@ class EffectFitter(HRefit):
         fits = [self._fit_family(form) for form in eff.forms(self.refit_h)]
         n = self.n_eff_residual(fits[0].fitted, fits[0]) if len(fits) > 1 else 1.0
         best = self._with_intervals(min(fits, key=lambda c: self.fit_criterion(c, n)))
-        return self._forms_alike(best, fits, n)
-
-    def _forms_alike(self, best: Candidate, fits: list[Candidate], n: float) -> Candidate:
-        """``best`` with each form parameter (:meth:`Effect.form_params`: friction's ``fed_back``,
-        the hysteresis's ``after_h``) in which another form that fits the fit experiments alike
-        (its criterion within :data:`SAME_FIT`) differs marked undetermined in its intervals: the
-        experiments cannot tell where the effect acts, and the next experiment should."""
-        mine = best.fitted.form_params()
-        for other in fits:
-            if other is best or self.fit_criterion(other, n) - self.fit_criterion(best, n) >= SAME_FIT:
-                continue
-            theirs = other.fitted.form_params()
-            for key in (k for k in mine if k in theirs and theirs[k] != mine[k]):
-                best.intervals = dict(best.intervals or {})
-                best.intervals[key] = None
-                best.intervals.setdefault("undetermined", {})[key] = (
-                    f"the fit experiments fit {key} = {mine[key]:g} and {key} = {theirs[key]:g} alike (criteria "
-                    f"within {SAME_FIT:g}); {mine[key]:g} is the lower")
-        return best
+        return forms_alike(best, fits, lambda c: self.fit_criterion(c, n), SAME_FIT)
 
     def _fit_family(self, eff: effect_models.Effect) -> Candidate:
         """One form of an effect (:meth:`Effect.forms`) as :meth:`fit` says, without intervals."""

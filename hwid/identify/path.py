@@ -38,8 +38,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hwid import HwidError
+from hwid import HwidError, adequacy
 from hwid.identify.defaults import RAIL_SHRINK, RAIL_TRIES
+from hwid.identify.rails import rail_values
 from hwid.identify.result import point_text
 from hwid.model import Actuator, HWModel
 from hwid.rundir import HISTORY, LINEAR, NONLINEAR, RIG_JOURNAL, WHOLE
@@ -113,18 +114,14 @@ def identify(cfg, *, plant=None, records=None, out_dir=None, echo=print, stage_r
 
 def assessed(ident: Identification, echo=print) -> Identification:
     """``ident`` with its adequacy (:func:`hwid.adequacy.assess` on the fit records and the held-out
-    ones); unchanged where there is no model or no such module."""
+    ones, off the sensor's rails); unchanged where there is no model."""
     if ident.model is None:
-        return ident
-    try:
-        from hwid import adequacy
-    except ImportError:
         return ident
     fit = [r for r in ident.records if r.y is not None]
     held = [r for r in ident.held_out if r.y is not None]
     if not fit:
         return ident
-    result = adequacy.assess(ident.model, fit, held, starts=ident.starts or None)
+    result = adequacy.assess(ident.model, fit, held, starts=ident.starts or None, off_rails=rail_values(fit + held))
     echo(f"adequacy: {result.verdict} ({result.reason})")
     return replace(ident, adequacy=result)
 
@@ -351,7 +348,8 @@ def stages_or_whole(cfg, ident: Identification, out, echo=print) -> Identificati
     fitted to the records as a whole, and where the sines drive G's output beyond the levels'
     range, h is extrapolated there (the paper's plant: a quintic h read on [-0.90, 0.70] and run to
     +-0.99 by the slowest sine missed it by 3x the noise, its own records by 2.3x). Their model is
-    judged on its own records (:func:`hwid.adequacy.assess`); where it is a misfit, the whole fit
+    judged on its own records off the sensor's rails (:func:`hwid.adequacy.assess`, the rails'
+    samples set aside as the stages set them aside); where it is a misfit, the whole fit
     started from it (:func:`hwid.identify.whole_again.fits_from`, on the staircases and the sines'
     last periods) is judged on the same records the same way, and replaces it where it is adequate or its RMS is at most
     :data:`~hwid.identify.defaults.CLEARLY_BETTER` of theirs; the route then says so. A model that
@@ -360,9 +358,9 @@ def stages_or_whole(cfg, ident: Identification, out, echo=print) -> Identificati
     ``identification.whole.enabled`` the whole fit runs beside in any case (``whole.h5``). A model
     behind an input dead zone (stage 1's, :func:`deadzone_behind`) stays the stages': the whole fit
     has no dead zone ahead of F."""
-    from hwid import adequacy
     from hwid.identify.defaults import CLEARLY_BETTER
-    stages = adequacy.assess(ident.model, ident.records)
+    rails = rail_values(ident.records)
+    stages = adequacy.assess(ident.model, ident.records, off_rails=rails)
     # undetermined on a determined floor: too few samples after the burn-in of a G so slow that
     # its records hold nothing past it (a folded h read as a line by stage 1: a pole at 0.09 rad/s
     # for the plant's 1.5, 148x the floor on the diagnosis's records)
@@ -376,7 +374,7 @@ def stages_or_whole(cfg, ident: Identification, out, echo=print) -> Identificati
     from hwid.identify.whole_again import fits_from
     t0 = time.perf_counter()
     whole, fitter = fits_from(cfg, ident.model, fit_records(list(ident.nonlinear_records) + list(ident.linear_records)),
-                              lambda res: adequacy.assess(res.model(), ident.records))
+                              lambda res: adequacy.assess(res.model(), ident.records, off_rails=rails))
     res, paths = _said(cfg, fitter, out, echo, t0, role="beside")
     beside = replace(ident, whole=res, paths={**ident.paths, **paths})
     whole_model = res.model()

@@ -102,3 +102,9 @@ def describe(rails: list[Rail], dt: float) -> str:
     """One line for the log and the verdict's ``why``."""
     return "; ".join(f"the output rests on its {r.side} rail {r.value:.6g} for {r.samples} samples "
                      f"({r.samples * dt:.3g} s, {r.runs} run{'s' if r.runs != 1 else ''})" for r in rails)
+
+
+def rail_values(records) -> tuple:
+    """The readings of the rails the records' outputs rest on (:func:`find_rails`), for the
+    adequacy to leave out (:func:`hwid.adequacy.assess`'s ``off_rails``)."""
+    return tuple(r.value for r in find_rails([r.y for r in records if getattr(r, "y", None) is not None]))
