@@ -30,8 +30,22 @@ from hwid.diagnose.experiments import settling_time
 from hwid.diagnose.effect_base import Effect, Scale, grid
 
 
+#: how far an identified model's refit may scale each of G's coefficients with an effect after the
+#: gear (:meth:`hwid.diagnose.rank.EffectFitter._g_bounds`; the other effects: 5). Friction fed back
+#: to G's input is a spring of stiffness ``coulomb / pre_sliding`` in G's loop while the load is
+#: pre-sliding, and a play or loop after G lags its output by an amplitude's share: stage 2 then
+#: identifies the loop, not G, and the plant's G may lie further than five times off in a
+#: coefficient (a judged two-mass rig with Dahl friction: its identified G carried two zeros and a
+#: slow pole the plant has not; within 5 its friction left 5.8 times the noise floor, within 50 1.3).
+#: The refit's effect-free part is checked as any candidate's (:meth:`EffectFitter.best_effect_free`):
+#: what G's freedom alone removes is credited to no effect.
+G_FACTOR_AFTER_GEAR = 50.0
+
+
 class _FrictionLaw(Effect):
     """What every friction form shares: the Coulomb level is what makes the fit a friction."""
+
+    g_factor = G_FACTOR_AFTER_GEAR      # a class attribute, not a field
 
     def log_params(self):
         return (False, True, False)
@@ -300,6 +314,10 @@ class GearFriction(_FrictionLaw):
 
     #: the largest Coulomb level, in multiples of the gear output's range (:meth:`bounds`)
     COULOMB_RANGES = 10.0
+    #: no force fed back from the load: G's loop is the plant's, and the refit's G keeps the other
+    #: effects' bounds (a sharp Coulomb step of the gear's path is a jump at every reversal of F's
+    #: output, which a Backlash-Inverse F makes too: more freedom in G only lets it stand in better)
+    g_factor = None
 
     def form_params(self) -> dict:
         return {FRICTION_FORM: 0.0}
@@ -357,6 +375,7 @@ class OutputHysteresis(Effect):
 
     #: the plays summed
     N_PLAYS = HYSTERESIS_PLAYS
+    g_factor = G_FACTOR_AFTER_GEAR
     #: the tilt's range: at 40 the widest play carries all but 5e-5 of the weight
     SHAPE_MAX = 40.0
 

@@ -244,8 +244,11 @@ class EffectFitter(HRefit):
         ne = len(eff.params)
         return t[:ne], (t[ne:] if t.size > ne else self.g_p)
 
-    def _g_bounds(self):
-        b = np.r_[[w for _, w in self._f_free], np.full(len(self._g_free), np.log(self.G_FACTOR))]
+    def _g_bounds(self, eff=None):
+        """F's and G's bounds; G's factor ``eff.g_factor`` where the effect sets one (an effect
+        acting inside G's loop reshapes what stage 2 identified: :mod:`hwid.diagnose.effects_after_gear`)."""
+        f = getattr(eff, "g_factor", None) or self.G_FACTOR
+        b = np.r_[[w for _, w in self._f_free], np.full(len(self._g_free), np.log(f))]
         return -b, b
 
     def _fit_baseline_g(self) -> np.ndarray:
@@ -426,7 +429,7 @@ class EffectFitter(HRefit):
         eff = c.fitted
         (lo, hi), logs = eff.bounds(self.scale), tuple(eff.log_params())
         if self.refit_g:
-            glo, ghi = self._g_bounds()
+            glo, ghi = self._g_bounds(eff)
             lo, hi, logs = np.r_[lo, glo], np.r_[hi, ghi], logs + (False,) * self.n_g
         step = self.COARSE_STEP if eff.kinked else self.FINE_STEP
         c.intervals = param_intervals(lambda th: self._residual(eff, th), c.theta, lo, hi, logs, eff.params,
@@ -473,7 +476,7 @@ class EffectFitter(HRefit):
         if eff.name == "time_delay" and self.delay_hint > 0:   # the excess phase taken out
             starts = list(starts) + [np.array([self.delay_hint])]
         if self.refit_g:   # G's parameters after the effect's, starting from the baseline's G
-            glo, ghi = self._g_bounds()
+            glo, ghi = self._g_bounds(eff)
             lo, hi = np.r_[lo, glo], np.r_[hi, ghi]
             logs = tuple(logs) + (False,) * self.n_g
             if not given:
