@@ -28,13 +28,14 @@ from hwid.diagnose.verdict import (Candidate, Relevance, alternative_baseline, e
                                     named_from_rails, refloor, simplest_in_group)
 from hwid.diagnose.verdict import verdict as decide_verdict
 from hwid.identify import rails
+from hwid.identify.defaults import MODEL_ERROR_RATIO
 from hwid.results import write_json
 
 #: The gap test's smallest mean-square excess that counts for an identified model (1.1 for a
 #: trusted simulator, :func:`hwid.diagnose.gap.gap_test`): an identified model carries its own
-#: error, up to 1.12x the floor; smaller gaps that an effect explains are still named by the second
-#: test (:func:`second_test`).
-ID_MIN_RATIO = 1.25
+#: error, up to 1.12x the floor (:data:`hwid.identify.defaults.MODEL_ERROR_RATIO`); smaller gaps
+#: that an effect explains are still named by the second test (:func:`second_test`).
+ID_MIN_RATIO = MODEL_ERROR_RATIO
 
 #: A model identified from one part of a log that misses the other part by more than this many times
 #: what it misses its own records by (or the floor, if larger) does not generalise, where both parts

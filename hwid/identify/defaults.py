@@ -42,6 +42,14 @@ POLISH_BEST = 4
 #: RAIL_TRIES times (:func:`hwid.identify.path.sines_off_the_rails`)
 RAIL_SHRINK = 0.7
 RAIL_TRIES = 3
+#: an identified model's own error allowed beside the noise: a mean-square ratio over the floor of
+#: up to this (its RMS up to 1.12x the floor). The diagnosis's gap test allows it an identified model
+#: (:data:`hwid.diagnose.conclude.ID_MIN_RATIO`), and the two stages' model is fitted again whole
+#: only beyond it (:func:`hwid.identify.path.stages_or_whole`): the paper's own plant, its h read on
+#: the levels and run a little beyond them by the slowest sine, misses its records by 1.07x over
+#: hours of samples, a misfit by the F test that no diagnosis would hold against it
+MODEL_ERROR_RATIO = 1.25
+
 #: a whole model started from the two stages' that is a misfit too replaces theirs only where its RMS
 #: on the same records is at most this share of theirs (:func:`hwid.identify.path.stages_or_whole`):
 #: a model clearly nearer its records, not one that moved within the noise of the comparison

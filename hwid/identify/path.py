@@ -349,7 +349,8 @@ def stages_or_whole(cfg, ident: Identification, out, echo=print) -> Identificati
     range, h is extrapolated there (the paper's plant: a quintic h read on [-0.90, 0.70] and run to
     +-0.99 by the slowest sine missed it by 3x the noise, its own records by 2.3x). Their model is
     judged on its own records off the sensor's rails (:func:`hwid.adequacy.assess`, the rails'
-    samples set aside as the stages set them aside); where it is a misfit, the whole fit
+    samples set aside as the stages set them aside); where it is a misfit by more than the model
+    error an identified model is allowed (:data:`~hwid.identify.defaults.MODEL_ERROR_RATIO`), the whole fit
     started from it (:func:`hwid.identify.whole_again.fits_from`, on the staircases and the sines'
     last periods) is judged on the same records the same way, and replaces it where it is adequate or its RMS is at most
     :data:`~hwid.identify.defaults.CLEARLY_BETTER` of theirs; the route then says so. A model that
@@ -358,14 +359,15 @@ def stages_or_whole(cfg, ident: Identification, out, echo=print) -> Identificati
     ``identification.whole.enabled`` the whole fit runs beside in any case (``whole.h5``). A model
     behind an input dead zone (stage 1's, :func:`deadzone_behind`) stays the stages': the whole fit
     has no dead zone ahead of F."""
-    from hwid.identify.defaults import CLEARLY_BETTER
+    from hwid.identify.defaults import CLEARLY_BETTER, MODEL_ERROR_RATIO
     rails = rail_values(ident.records)
     stages = adequacy.assess(ident.model, ident.records, off_rails=rails)
     # undetermined on a determined floor: too few samples after the burn-in of a G so slow that
     # its records hold nothing past it (a folded h read as a line by stage 1: a pole at 0.09 rad/s
     # for the plant's 1.5, 148x the floor on the diagnosis's records)
     unjudged = stages.verdict == "undetermined" and stages.floor.determined
-    switch = (stages.verdict == "misfit" or unjudged) and ident.model.actuator is None
+    relevant = stages.verdict == "misfit" and stages.ratio ** 2 > MODEL_ERROR_RATIO
+    switch = (relevant or unjudged) and ident.model.actuator is None
     if not switch:
         return _whole_beside(cfg, ident, ident.model, out, echo) if cfg.identification.whole.enabled else ident
     echo(f"the two stages' model {'cannot be judged on' if unjudged else 'misses'} its own records "
