@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from hwid import HwidError, adequacy
-from hwid.identify.defaults import RAIL_SHRINK, RAIL_TRIES
+from hwid.identify.defaults import CLEARLY_BETTER, MODEL_ERROR_RATIO, RAIL_SHRINK, RAIL_TRIES
 from hwid.identify.rails import rail_values
 from hwid.identify.result import point_text
 from hwid.model import Actuator, HWModel
@@ -359,7 +359,6 @@ def stages_or_whole(cfg, ident: Identification, out, echo=print) -> Identificati
     ``identification.whole.enabled`` the whole fit runs beside in any case (``whole.h5``). A model
     behind an input dead zone (stage 1's, :func:`deadzone_behind`) stays the stages': the whole fit
     has no dead zone ahead of F."""
-    from hwid.identify.defaults import CLEARLY_BETTER, MODEL_ERROR_RATIO
     rails = rail_values(ident.records)
     stages = adequacy.assess(ident.model, ident.records, off_rails=rails)
     # undetermined on a determined floor: too few samples after the burn-in of a G so slow that
@@ -376,7 +375,9 @@ def stages_or_whole(cfg, ident: Identification, out, echo=print) -> Identificati
     from hwid.identify.whole_again import fits_from
     t0 = time.perf_counter()
     whole, fitter = fits_from(cfg, ident.model, fit_records(list(ident.nonlinear_records) + list(ident.linear_records)),
-                              lambda res: adequacy.assess(res.model(), ident.records, off_rails=rails))
+                              lambda res: adequacy.assess(res.model(), ident.records, off_rails=rails)) or (None, None)
+    if whole is None:       # no whole fit could start from the stages' model: theirs stays
+        return ident
     res, paths = _said(cfg, fitter, out, echo, t0, role="beside")
     beside = replace(ident, whole=res, paths={**ident.paths, **paths})
     whole_model = res.model()
@@ -501,8 +502,6 @@ def _whole_again(cfg, ident: Identification, out, echo=print) -> Identification:
     starts (:func:`hwid.adequacy.assess`); the best kept where adequate or its RMS is at most
     :data:`~hwid.identify.defaults.CLEARLY_BETTER` of the first's, as in :func:`stages_or_whole`.
     A rate the records need stays: the fits without it are then no better."""
-    from hwid import adequacy
-    from hwid.identify.defaults import CLEARLY_BETTER
     from hwid.identify.whole_again import fits_from
     first = adequacy.assess(ident.model, ident.records, starts=ident.starts or None)
     if first.verdict != "misfit":
@@ -511,10 +510,11 @@ def _whole_again(cfg, ident: Identification, out, echo=print) -> Identification:
     t0 = time.perf_counter()
     records = list(ident.records)
     again, fitter = fits_from(cfg, ident.model.without_actuator(), records,
-                              lambda res: adequacy.assess(res.model(), records, starts=res.initial_states))
-    if again.verdict != "adequate" and not again.rms_fit <= CLEARLY_BETTER * first.rms_fit:
-        note = (f"the whole fit from it without its actuator is no better on its records (RMS {again.rms_fit:.4g} "
-                f"for {first.rms_fit:.4g}): the model keeps its actuator")
+                              lambda res: adequacy.assess(res.model(), records, starts=res.initial_states)) or (None, None)
+    if again is None or again.verdict != "adequate" and not again.rms_fit <= CLEARLY_BETTER * first.rms_fit:
+        note = ("no whole fit could start from it without its actuator" if again is None else f"the whole fit from "
+                f"it without its actuator is no better on its records (RMS {again.rms_fit:.4g} for {first.rms_fit:.4g})"
+                ) + ": the model keeps its actuator"
         echo(note)
         return replace(ident, notes=ident.notes + (note,))
     res, paths = _said(cfg, fitter, out, echo, t0)

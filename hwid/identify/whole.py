@@ -108,7 +108,7 @@ class WholeModelFit:
             own = structure_of(start.linear)
             if own is not None:
                 structures = [own]
-            p = len(start.output.coefficients) - 1
+            p = min(len(start.output.coefficients) - 1, self.max_degree)   # a start of a higher degree: the highest
             degrees = range(max(1, p - 1), min(self.max_degree, p + 1) + 1)
         search = _Search(self, records, start, borders)
         pairs = [(kind, structure) for kind in types for structure in structures]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hwid import HwidError
 from hwid.identify.whole import WholeModelFit
 from hwid.model import HWModel
 
@@ -22,13 +23,19 @@ def fits_from(cfg, start: HWModel, records, judge) -> tuple:
     ``borders``), then from the border grid with both types of F (the start's type can be wrong: a
     folded h read from the levels made stage 1 a Backlash-Inverse without play for a Backlash, and
     both fits of that type stopped at 9.4x the noise). ``(adequacy, fitter)`` of the one nearer
-    the records."""
+    the records; None where no attempt could be fitted (each one that cannot -- too few records
+    for its start, a degenerate design -- is passed over: the model then stays the start)."""
     tried = []
     for fit in (lambda: WholeModelFit.from_config(cfg).fit(records, start=start),
                 lambda: WholeModelFit.from_config(cfg, staged=True).fit(records, borders=start.input),
                 lambda: WholeModelFit.from_config(cfg, staged=True).fit(records)):
-        done = fit()
+        try:
+            done = fit()
+        except (HwidError, ValueError, np.linalg.LinAlgError):
+            continue
         tried.append((judge(done.result_), done))
         if tried[-1][0].verdict == "adequate":
             break
+    if not tried:
+        return None
     return min(tried, key=lambda t: t[0].rms_fit if np.isfinite(t[0].rms_fit) else np.inf)
