@@ -228,18 +228,19 @@ def gap_test_step(ctx: Context) -> Gaps:
     val, floor, identified = ctx.val, ctx.floor, ctx.identified
     res_before = [y - x for y, x in zip(val.y_val, val.sim_val.x)]
     n_val = int(sum(m.sum() for m in val.m_val))
+    if ctx.model_adequacy is None:
+        ctx.model_adequacy, ctx.adequacy_on = model_adequacy(ctx), adequacy_where(ctx)
+    min_ratio = ID_MIN_RATIO if identified else 1.1
     fitter = rank.EffectFitter(val.sim_fit, [val.records[i].y for i in val.fit_idx],
                                [val.exps[i].mask for i in val.fit_idx], val.sim_val, val.y_val, val.m_val,
                                [val.exps[i].name for i in val.val_idx], val.scale, floor.sigma, floor.kappa,
                                refit_h=identified, refit_g=identified,
                                band=(sine_band(ctx.cfg) if ctx.band is None else ctx.band) if identified else None,
-                               hints=actuator_hints(ctx.origin))
-    gaps = Gaps(res_before, gap.gap(res_before, val.m_val), fitter.gap_ref, n_val, fitter, floor,
-                ID_MIN_RATIO if identified else 1.1)
+                               hints=actuator_hints(ctx.origin),
+                               recentre=identified and fails_own_records(ctx, min_ratio) is not None)
+    gaps = Gaps(res_before, gap.gap(res_before, val.m_val), fitter.gap_ref, n_val, fitter, floor, min_ratio)
     if identified:
         _credit_from_the_model_as_identified(gaps, ctx.echo)
-    if ctx.model_adequacy is None:
-        ctx.model_adequacy, ctx.adequacy_on = model_adequacy(ctx), adequacy_where(ctx)
     if ctx.model_adequacy is not None and ctx.model_adequacy.misfit:
         ctx.echo(describe_misfit(ctx))
     if identified:
