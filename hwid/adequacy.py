@@ -35,6 +35,7 @@ import numpy as np
 from scipy import signal, special, stats
 
 from hwid import spectral_lines
+from hwid.masks import runs
 
 #: false-alarm rate of the misfit test on a correct model (per assessment)
 ALPHA = 0.01
@@ -383,7 +384,7 @@ def _smoother(records, off_rails: tuple = ()) -> tuple | None:
         res = y - signal.savgol_filter(y, window, SMOOTHER_ORDER)
         ok = quiet(getattr(r, "u", None), y.size, window) & ~np.isin(y, off_rails)
         ok[:window // 2] = ok[y.size - window // 2:] = False
-        for a, b in _runs(ok):
+        for a, b in runs(ok):
             for blk in _blocks(res[a:b]):
                 pieces.append((float(blk @ blk), blk.size * (1.0 - h0), blk.size * per_sample))
         used += 1
@@ -391,12 +392,6 @@ def _smoother(records, off_rails: tuple = ()) -> tuple | None:
     if pooled is None:
         return None
     return pooled[0], pooled[1], 1.0, f"a local quartic over {SMOOTHER_WINDOW} samples on {used} record(s)", ()
-
-
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """``[start, stop)`` of each run of True in ``mask``."""
-    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
 
 
 def _still_on_the_quantum(records, q: float) -> bool:

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from hwid import HwidError
+from hwid.masks import runs
 from hwid.plant import Record
 
 #: a gap in the timestamps longer than this many sample times splits a record
@@ -405,11 +406,11 @@ def _split(t, u, y, dt: float, decisions: dict, forced=(), points: list | None =
     pieces = []
     for tk, uk, yk in zip(np.split(t, cuts), np.split(u, cuts), np.split(y, cuts)):
         missing = ~(np.isfinite(uk) & np.isfinite(yk))
-        runs = _runs(missing)
-        long_runs = [(a, b) for a, b in runs if b - a > MAX_NAN_RUN]
+        gaps = runs(missing)
+        long_runs = [(a, b) for a, b in gaps if b - a > MAX_NAN_RUN]
         points += [{"time_s": float(tk[a - 1]), "gap_s": float(tk[b] - tk[a - 1]), "cause": "missing"}
                    for a, b in long_runs if 0 < a and b < tk.size]
-        for a, b in runs:
+        for a, b in gaps:
             if b - a <= MAX_NAN_RUN:
                 decisions["nan_interpolated"] += b - a
         ok = np.flatnonzero(~missing)
@@ -425,13 +426,6 @@ def _split(t, u, y, dt: float, decisions: dict, forced=(), points: list | None =
             elif b > a:
                 decisions["dropped_short_pieces"] += 1
     return pieces
-
-
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """``(start, stop)`` of each run of True in ``mask``."""
-    padded = np.concatenate([[False], mask, [False]]).astype(int)
-    edges = np.flatnonzero(np.diff(padded))
-    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
 
 
 def resample(t, u, y, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -501,10 +495,7 @@ def periodic_segment(u: np.ndarray, dt: float, harmonics: int = 5, share: float 
         return None
     edges = np.round(np.arange(whole + 1) * period).astype(int)
     amp = np.array([np.ptp(u[edges[i]:edges[i + 1]]) for i in range(whole)])
-    ok = np.concatenate([[False], amp >= (1.0 - steady) * amp.max(), [False]])
-    starts, stops = np.flatnonzero(np.diff(ok.astype(int)) == 1), np.flatnonzero(np.diff(ok.astype(int)) == -1)
-    longest = int(np.argmax(stops - starts))
-    first, last = int(starts[longest]), int(stops[longest])
+    first, last = max(runs(amp >= (1.0 - steady) * amp.max()), key=lambda ab: ab[1] - ab[0])
     if last - first < 2:
         return None
     return {"kind": "periodic", "start": int(edges[first]), "stop": int(edges[last]),

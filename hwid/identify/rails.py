@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hwid.masks import run_lengths
+
 #: the shortest run of one exact value that counts as resting on a rail (samples)
 MIN_RUN = 10
 
@@ -54,12 +56,6 @@ class Rail:
                 "records": list(self.records)}
 
 
-def _runs(flag: np.ndarray) -> np.ndarray:
-    """Lengths of the runs of True in ``flag``."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], flag.astype(np.int8), [0]])))
-    return edges[1::2] - edges[::2]
-
-
 def find_rails(ys, names=None) -> list[Rail]:
     """The rails the outputs ``ys`` (one array per record; ``names`` for the report) rest on, low
     first; empty where none is reached or the sensor repeats readings away from its extremes."""
@@ -79,7 +75,7 @@ def find_rails(ys, names=None) -> list[Rail]:
         samples, runs, where = 0, 0, []
         for k, y in enumerate(ys):
             at = y == value
-            lengths = _runs(at)
+            lengths = run_lengths(at)
             long = lengths[lengths >= MIN_RUN]
             if long.size:
                 samples, runs = samples + int(long.sum()), runs + int(long.size)

@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from hwid import HwidError
+from hwid.masks import runs
 from hwid.recorded import level_segments
 
 #: Fewest scored samples a record needs to take part in the split.
@@ -91,7 +92,6 @@ def _pieces(parts, role: str, tag: str) -> list:
         if samples.all():
             out.append(r)
             continue
-        idx = np.flatnonzero(np.diff(np.concatenate([[0], samples.astype(int), [0]])))
-        for k, (a, b) in enumerate(zip(idx[::2], idx[1::2])):
+        for k, (a, b) in enumerate(runs(samples)):
             out.append(replace(r, name=f"{r.name}:{tag}{k}", u=r.u[a:b], y=r.y[a:b], attrs=dict(r.attrs)))
     return out
