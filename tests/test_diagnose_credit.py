@@ -48,6 +48,24 @@ def test_an_effect_that_takes_a_sliver_off_the_floor_is_not_named():
     assert "0.02 of the other" in rel.describe(delay)
 
 
+def test_a_candidate_that_stands_in_for_something_else_does_not_make_the_gap_significant():
+    """c18 of seed 10401 (a plain third-order rig, identified at 1.02x its floor): a friction whose
+    Coulomb interval holds zero took 0.2 % of the gap with a likelihood ratio of 520. Standing in
+    for a rate dependence (G's own error), it is not asked; the same fit as a friction would be."""
+    sigma, base, after = 0.010055, 0.010194, 0.009962
+    nf = NoiseFloor(sigma=sigma, kappa=1.0, n=4000, slow_rms=0.0, slow_z=0.0, surrogate=np.zeros(1))
+    rel = Relevance(base, sigma)
+    fric = _cand("friction", base, after, sigma, score=492.3, k=3.0)
+    _, by = second_test([fric], base, nf, False, 20000.0, refloor_first=False, min_share=0.0, relevant=rel)
+    assert by["significant"] and by["likelihood_ratio"] > 25
+    fric.stands_in = "its Coulomb level's 95 % interval [-0.00939, 0.00664] holds zero"
+    other = _cand("time_delay", base, 0.010193, sigma, score=-9.3)
+    _, by = second_test([fric, other], base, nf, False, 20000.0, refloor_first=False, min_share=0.0, relevant=rel)
+    assert by["effect"] == "time_delay" and not by["significant"]
+    _, by = second_test([fric], base, nf, False, 20000.0, refloor_first=False, min_share=0.0, relevant=rel)
+    assert by is None
+
+
 @pytest.mark.parametrize("base, after, sigma", [
     (0.1134, 0.00996, 0.00995),     # identified rate limit: the refit leaves most of the gap
     (0.01001, 0.00911, 0.00966),    # identified clipping sensor, held near the floor
