@@ -237,7 +237,9 @@ def gap_test_step(ctx: Context) -> Gaps:
                                refit_h=identified, refit_g=identified,
                                band=(sine_band(ctx.cfg) if ctx.band is None else ctx.band) if identified else None,
                                hints=actuator_hints(ctx.origin),
-                               recentre=identified and fails_own_records(ctx, min_ratio) is not None)
+                               recentre=(min_ratio if identified and fails_own_records(ctx, min_ratio) is not None
+                                         else None),
+                               keep_modes=identified and ctx.from_logs)
     gaps = Gaps(res_before, gap.gap(res_before, val.m_val), fitter.gap_ref, n_val, fitter, floor, min_ratio)
     if identified:
         _credit_from_the_model_as_identified(gaps, ctx.echo)
@@ -266,9 +268,15 @@ def _credit_from_the_model_as_identified(gaps: Gaps, echo) -> None:
     resonance for the mode) was credited with the whole gap while the gap it reported went
     0.00991 -> 0.00991 (a plain two-mass drive from a lab log, its own mode at 3.1 rad/s and
     zeta 0.19 in the identified G, was called `resonance`). The mode is then the model's own; it is
-    reported with the baseline (:func:`_echo_baseline`) and in ``model_refit``."""
+    reported with the baseline (:func:`_echo_baseline`) and in ``model_refit``.
+
+    A pure delay the identification fitted as a block of its own (the whole fit's, beside its
+    slew and clip, :mod:`hwid.identify.whole_delay`) is not a feature of G: like the slew and the
+    clip, ``time_delay`` must earn it back and is named where it does (three transport delays of
+    0.3-3 s on judged lab logs had been called `none`, the model's own)."""
     fitter = gaps.fitter
-    took_out = bool(fitter.modes or fitter.cancelled_pairs or fitter.delay_hint > 0)
+    phase = max(fitter.delay_hint - fitter.delay_block, 0.0)
+    took_out = bool(fitter.modes or fitter.cancelled_pairs or phase > 0)
     if not took_out or not gaps.gap_before < fitter.gap_ref:
         return
     if gap.gap_test(gaps.gap_before, gaps.n_val, gaps.floor, min_ratio=gaps.min_ratio).significant:

@@ -22,7 +22,8 @@ from hwid.model import InputNonlinearity
 
 class GRefit:
     """The F-and-G half of :class:`hwid.diagnose.rank.EffectFitter` (its attributes: ``scale``,
-    ``sf``, ``sfw``, ``svw``, ``JOINT_TOL`` and the residual ``_residual`` with the unit-box maps)."""
+    ``sf``, ``sfw``, ``svw``, ``sigma``, ``yv``, ``mv``, ``JOINT_TOL``, the residual ``_residual``
+    with the unit-box maps, and h's refit ``_refit_predict``)."""
 
     G_FACTOR = 5.0
     RECENTRE_MOVES = 3      # moves of the refit's box for a model that misses its own records
@@ -121,30 +122,46 @@ class GRefit:
         r0 = fun(x0)
         return self._from_unit(sol.x, lo, hi, logs) if 2 * sol.cost < float(r0 @ r0) else np.zeros(self.n_g)
 
-    def _recentre(self) -> None:
+    def _recentre(self, min_ratio: float) -> None:
         """Where the baseline's refit ends on the edge of its box (a factor :attr:`G_FACTOR` on G's
         coefficients, F's shifts), the box moves to the refit model and the baseline is refitted from
-        there, up to :attr:`RECENTRE_MOVES` times. Only for a model that misses its own records
-        (``recentre``): its F and G are not a model of the plant to stay near. A model fitted across
-        a change of the plant's gain put a slow zero into G to follow both halves; the refit on the
-        diagnosis's records stopped on the box's edge at 1.18x the floor, and the delay or lag
-        credited with the rest was the refit's box, not the plant."""
+        there, up to :attr:`RECENTRE_MOVES` times. Only for a model that misses its own records: its
+        F and G are not a model of the plant to stay near. The moved box is kept only where its
+        refit predicts the validation records within ``min_ratio`` (mean square) of the floor: a
+        model of the same structure then fits the plant as it is now, and the model handed over was
+        not that model (:func:`hwid.diagnose.model_check.changed_or_inadequate` says so). A model
+        fitted across a change of the plant's gain put a slow zero into G to follow both halves; the
+        refit in the first box stopped on its edge at 1.18x the floor, and the lag credited with the
+        rest was the box, not the plant. Elsewhere the box stays where it was: a model that misses
+        its records because an effect was left out of it (a slew the whole fit took out) would
+        otherwise be bent towards that effect, and the effect's starts from the identified model
+        left outside the box."""
+        first = (self._f0, self._g_num, self._g_den, self._g_free, self.g_p)
+        moved = False
         for _ in range(self.RECENTRE_MOVES):
             lo, hi = self._g_bounds()
             span = np.maximum(hi - lo, 1e-12)
             on_edge = (np.abs(self.g_p - lo) < 1e-3 * span) | (np.abs(hi - self.g_p) < 1e-3 * span)
             if not np.any(on_edge):
-                return
-            before = self._refit_gap_fit()
-            F, G = self.input_nl(self.g_p), self.linear(self.g_p)
-            keep = (self._f0, self._g_num, self._g_den, self._g_free, self.g_p)
-            self._init_g(F, G)
-            g_p = self._fit_baseline_g()
-            self.g_p = g_p
-            if not self._refit_gap_fit() < before:
-                self._f0, self._g_num, self._g_den, self._g_free, self.g_p = keep
-                self._g_cache = {}
-                return
+                break
+            before = (self._refit_gap_fit(), (self._f0, self._g_num, self._g_den, self._g_free, self.g_p))
+            self._init_g(self.input_nl(self.g_p), self.linear(self.g_p))
+            self.g_p = self._fit_baseline_g()
+            if not self._refit_gap_fit() < before[0]:
+                self._restore(before[1])
+                break
+            moved = True
+        if moved and not self._refit_gap_val() ** 2 <= min_ratio * self.sigma ** 2:
+            self._restore(first)
+
+    def _restore(self, state) -> None:
+        self._f0, self._g_num, self._g_den, self._g_free, self.g_p = state
+        self._g_cache = {}
+
+    def _refit_gap_val(self) -> float:
+        """The baseline's RMS gap on the validation records (h re-estimated)."""
+        x = self._refit_predict(None, None, "val")
+        return float(np.sqrt(np.mean(np.concatenate([(y - xi)[m] for y, xi, m in zip(self.yv, x, self.mv)]) ** 2)))
 
     def _refit_gap_fit(self) -> float:
         """The baseline's residual on the fit records (h re-estimated), for :meth:`_recentre`."""
@@ -227,9 +244,12 @@ class GRefit:
         for excess phase; a delay fitted explicitly, as the whole fit from logs does, is the same
         excess phase by name). The refit G is then re-estimated without it, and the delay is a
         starting point of ``time_delay``, which must earn it back on the validation data. A
-        delay the refit G's poles can stand in for leaves no gap, and no effect is named."""
+        delay the refit G's poles can stand in for leaves no gap, and no effect is named. The delay
+        taken out is ``delay_block``: a block of the model, as the whole fit's slew and clip are,
+        not a feature of its rational G (:func:`hwid.diagnose.conclude.gap_test_step`)."""
         if self._g_delay <= 0.1 * self.sf.dt:     # a tenth of a sample is no delay
             return
         F, G = self.input_nl(self.g_p), self.linear(self.g_p)
         self._replace_g(F, G.num, G.den, 0.0)
         self.delay_hint += float(G.delay)
+        self.delay_block = float(G.delay)

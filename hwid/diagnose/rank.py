@@ -77,6 +77,16 @@ class EffectFitter(GRefit, HRefit):
     strip_identified : bool
         Take lightly damped modes outside ``band`` out of the identified G before the baseline is
         refit (see :func:`alternative_baseline`).
+    recentre : float, optional
+        For a model that misses its own records: the baseline's box may follow its refit where the
+        refit then predicts the validation records within this mean-square ratio of the floor
+        (:meth:`hwid.diagnose.g_refit.GRefit._recentre`).
+    keep_modes : bool
+        Keep the refit G's lightly damped modes (not taken out after the refit). For a model
+        identified from logs as a whole (``band`` (0, 0)), whose G's modes the whole fit read from
+        every record: the baseline with them kept is the model as identified; the one without them
+        (``strip_identified``) is fitted beside it and each effect uses the better
+        (:func:`hwid.diagnose.verdict.alternative_baseline`).
     """
 
     # stopping rules of the joint fits (F, G, h and an effect): 1e-6 of the cost is far below what
@@ -94,7 +104,8 @@ class EffectFitter(GRefit, HRefit):
 
     def __init__(self, sim_fit, y_fit, m_fit, sim_val, y_val, m_val, names_val, scale, sigma, kappa,
                  max_samples: int = 60000, refit_h: bool = False, refit_g: bool = False, band=None,
-                 strip_identified: bool = False, hints: dict | None = None, recentre: bool = False):
+                 strip_identified: bool = False, hints: dict | None = None, recentre: float | None = None,
+                 keep_modes: bool = False):
         self.sf, self.sv = sim_fit, sim_val
         self.yf, self.yv = [np.asarray(y, float) for y in y_fit], [np.asarray(y, float) for y in y_val]
         self.mf, self.mv = [np.asarray(m, bool) for m in m_fit], [np.asarray(m, bool) for m in m_val]
@@ -131,6 +142,7 @@ class EffectFitter(GRefit, HRefit):
         # group delay of right-half-plane zeros (time_delay)
         self.modes: list[tuple[float, float]] = []
         self.delay_hint = 0.0
+        self.delay_block = 0.0      # of which a pure delay of the identified G (not excess phase of zeros)
         # what the whole fit from logs found of the actuator and took out of the model (the input's
         # slew rate, :mod:`hwid.identify.whole_rate`; its limits, :mod:`hwid.identify.whole_clip`):
         # starts of those effects' own parameters, with the identified G
@@ -150,10 +162,11 @@ class EffectFitter(GRefit, HRefit):
                     self._strip_modes(band, refit=False)
                 self._cancel_slow_pairs(band, refit=False)
                 self.g_p = self._fit_baseline_g()
-                if recentre:
-                    self._recentre()
+                if recentre is not None:
+                    self._recentre(recentre)
                 self._cancel_slow_pairs(band)
-                self._strip_modes(band)
+                if not keep_modes:
+                    self._strip_modes(band)
                 self._strip_rhp_zeros()
                 self._strip_delay()
             self.baseline_val = self._refit_predict(None, None, "val")
