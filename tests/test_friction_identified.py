@@ -100,15 +100,28 @@ def test_friction_on_a_two_mass_drive_named_from_an_identified_model(tmp_path_fa
     assert s["gap_after"] < 1.3 * s["noise_floor"], (s["gap_after"], s["noise_floor"])
 
 
+def normalised_truth(plant: dict) -> dict:
+    """The generator's friction in the units of the identified model, which is normalised (eqs.
+    4a-c): F's output divided by its ascending slope ``k_v`` (a Backlash's ``slope_up``), G's by
+    ``k_w = k_v G(0)``. The force acts on G's input (``v``'s units: the Coulomb level over
+    ``k_v``), the pre-sliding displacement is a travel of G's output (``w``'s: over ``k_w``), the
+    viscous term a force per velocity of G's output (times ``k_w / k_v``)."""
+    k_v = plant["F"]["slope_up"]
+    k_w = k_v * plant["G"]["num"][-1] / plant["G"]["den"][-1]
+    p = plant["effect_params"]
+    return {"coulomb": p["coulomb"] / k_v, "pre_sliding": p["z_c"] / k_w, "viscous": p["viscous"] * k_w / k_v}
+
+
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="the Coulomb level and pre-sliding displacement come out 4 % and 10 % "
-                                       "low with 95 % intervals of +-1 %: the fit's G and h (1.26x the floor "
-                                       "left) bias them, and the intervals do not carry the model's error")
 def test_friction_on_a_two_mass_drive_intervals_cover_the_truth(tmp_path_factory):
+    """The friction's 95 % intervals cover the truth in the model's units (:func:`normalised_truth`).
+    The fit leaves more than the floor on its own experiments (the identified G's structure is not
+    the plant's), so the intervals also carry the delete-one-experiment jackknife
+    (:mod:`hwid.diagnose.intervals`): the noise's alone held the pre-sliding displacement to
+    +-0.75 %, and the fit is 1.2 % below the truth."""
     s = _two_mass(tmp_path_factory)
     top = next(c for c in s["candidates"] if c["effect"] == "friction")
-    truth = {"coulomb": TWO_MASS["effect_params"]["coulomb"], "pre_sliding": TWO_MASS["effect_params"]["z_c"]}
-    for name, value in truth.items():
+    for name, value in normalised_truth(TWO_MASS).items():
         iv = top["intervals"][name]
         assert iv is not None and iv[0] <= value <= iv[1], (name, value, iv, top["params"])
 

@@ -261,7 +261,8 @@ class EffectFitter(GRefit, HRefit):
         return best
 
     def _with_intervals(self, c: Candidate) -> Candidate:
-        """``c`` with its own parameters' 95 % intervals (:func:`param_intervals`; F's, G's marginalised)."""
+        """``c`` with its own parameters' 95 % intervals (:func:`param_intervals`; F's, G's marginalised;
+        where the fit misses the noise floor, also the delete-one-fit-experiment jackknife's)."""
         eff = c.fitted
         (lo, hi), logs = eff.bounds(self.scale), tuple(eff.log_params())
         if self.refit_g:
@@ -269,7 +270,8 @@ class EffectFitter(GRefit, HRefit):
             lo, hi, logs = np.r_[lo, glo], np.r_[hi, ghi], logs + (False,) * self.n_g
         step = self.COARSE_STEP if eff.kinked else self.FINE_STEP
         c.intervals = param_intervals(lambda th: self._residual(eff, th), c.theta, lo, hi, logs, eff.params,
-                                      kappa_min=self.kappa / self.stride, step=step)
+                                      kappa_min=self.kappa / self.stride, step=step,
+                                      groups=[len(at) for at in self._at["fit"]], sigma=self.sigma)
         c.stands_in = eff.stands_in(c.intervals)
         return c
 
