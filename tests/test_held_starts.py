@@ -66,3 +66,32 @@ def test_least_squares_with_the_held_jacobian_reaches_the_truth():
     sol2 = least_squares(g, np.array([0.3, 0.6]), bounds=(0.0, 1.0), diff_step=1e-3)
     assert np.allclose(sol2.x, TRUTH, atol=1e-6)
     assert f.searches < g.searches
+
+
+def test_a_start_on_an_end_of_its_range_follows_the_end_and_the_gradient_is_the_full_ones():
+    """A start whose minimiser lies beyond its range is found on the range's end, and that end moves
+    with the parameters: there the cost's slope in the start is not zero, the start follows the end,
+    and holding its value would take that share out of the gradient. Each column takes the end
+    where its parameters put it, without a search."""
+    searches = []
+
+    def f(x):
+        hi = x[1] - 1.0                       # the range [-1, x1 - 1] ends short of the phase 0.3
+
+        def search():
+            searches.append(1)
+            return search_1d(lambda s: float(np.sum((Y - x[0] * np.sin(T + s)) ** 2)), -1.0, hi)
+        s = nuisance(search, ("phase", 0), (-1.0, hi))
+        return Y - x[0] * np.sin(T + s)
+    x = np.array([0.6, 0.7])
+    held = HeldJacobian(f, 1e-6)
+    assert held.searched(x)
+    r = held.fun(x)
+    n = len(searches)
+    J = held.jac(x)
+    in_columns = len(searches) - n
+    cost = lambda z: 0.5 * float(np.sum(f(z) ** 2))
+    g_full = approx_derivative(cost, x, rel_step=1e-6, method="3-point")
+    assert abs(g_full[1]) > 1.0                # the end's move is most of the gradient
+    assert np.allclose(J.T @ r, g_full, rtol=1e-3, atol=1e-5)
+    assert in_columns == 0                     # the columns took the range's end, not a search

@@ -11,7 +11,12 @@ Held at the point the Jacobian is taken at, the columns are the partial derivati
 residual at fixed starts: the Jacobian of variable projection in Kaufman's form (Golub and Pereyra
 2003, "Separable nonlinear least squares: the variable projection method and its applications",
 sect. 3), whose gradient ``J^T r`` equals the full one at a start that minimises the cost (there
-``r^T dr/ds = 0``). Every residual the optimiser accepts or rejects a step on is still the exact
+``r^T dr/ds = 0``). That holds only inside the start's range: a start found on an end of its range
+(a gear pushed against a border of the play, whose ends move with F's borders and with the input an
+actuator effect leaves) follows that end as the parameters move, and held there it takes that share
+out of the Jacobian (a slow actuator's rate fit stopped at 0.146 units/s, 6x the floor, for the
+truth's 0.133). Such a start is held on its end: each column takes the end where the column's
+parameters put it. Every residual the optimiser accepts or rejects a step on is still the exact
 one, its starts searched.
 """
 from __future__ import annotations
@@ -29,23 +34,40 @@ class _State(threading.local):
 
 _STATE = _State()
 
+#: a start within this share of its range from an end of it is on that end (the search's own
+#: tolerance is 1e-6 of the range, :func:`hwid.diagnose.starts.search_1d`)
+ON_END = 1e-4
 
-def nuisance(search, key) -> float:
-    """``search()`` (a nuisance start's minimiser), noted under ``key`` while a residual is recorded,
-    and the noted value returned in its place while one is replayed (:class:`HeldJacobian`).
-    ``key``: what the start is of (its kind and record); several searches under one key in one
-    residual are told apart by their order."""
+
+def on_end(value: float, bounds) -> int | None:
+    """Which end of the range ``bounds`` (``(lo, hi)``; None: no range) ``value`` lies on: 0 (lo),
+    1 (hi), or None (inside it)."""
+    if bounds is None:
+        return None
+    lo, hi = float(bounds[0]), float(bounds[1])
+    tol = ON_END * max(hi - lo, 0.0)
+    return 0 if value <= lo + tol else 1 if value >= hi - tol else None
+
+
+def nuisance(search, key, bounds=None) -> float:
+    """``search()`` (a nuisance start's minimiser over the range ``bounds``), noted under ``key``
+    while a residual is recorded, and the noted value returned in its place while one is replayed
+    (:class:`HeldJacobian`); a start found on an end of its range (:func:`on_end`), where the
+    minimiser is not stationary, is replayed as that end of the range ``bounds`` the replayed
+    residual passes. ``key``: what the start is of (its kind and record); several searches under
+    one key in one residual are told apart by their order."""
     st = _STATE
     if st.mode == "replay":
         n = st.pos.get(key, 0)
         noted = st.seen.get(key, ())
         if n < len(noted):
             st.pos[key] = n + 1
-            return noted[n]
+            value, end = noted[n]
+            return value if end is None or bounds is None else float(bounds[end])
         return search()
     value = search()
     if st.mode == "record":
-        st.seen.setdefault(key, []).append(value)
+        st.seen.setdefault(key, []).append((value, on_end(value, bounds)))
     return value
 
 

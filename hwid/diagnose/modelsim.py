@@ -277,7 +277,7 @@ class ModelSim:
     def _search(self, cost, lo: float, hi: float, key) -> float:
         """The minimiser of ``cost`` over [lo, hi] (:func:`hwid.diagnose.starts.search_1d`), held
         under ``key`` across a Jacobian's columns (:func:`hwid.diagnose.held_starts.nuisance`)."""
-        return nuisance(lambda: search_1d(cost, lo, hi, self.NUISANCE_POINTS), key)
+        return nuisance(lambda: search_1d(cost, lo, hi, self.NUISANCE_POINTS), key, (lo, hi))
 
     @property
     def v_span(self) -> tuple[float, float]:
