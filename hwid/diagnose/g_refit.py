@@ -16,6 +16,7 @@ from scipy.optimize import least_squares
 
 from hwid.diagnose import effects as effect_models
 from hwid.diagnose.baseline import cancel_slow_pairs, mirror_rhp_zeros, split_modes
+from hwid.diagnose.gap import rms
 from hwid.diagnose.modelsim import ReblockedSim
 from hwid.model import InputNonlinearity
 
@@ -136,7 +137,7 @@ class GRefit:
         its records because an effect was left out of it (a slew the whole fit took out) would
         otherwise be bent towards that effect, and the effect's starts from the identified model
         left outside the box."""
-        first = (self._f0, self._g_num, self._g_den, self._g_free, self.g_p)
+        first = self._state()
         moved = False
         for _ in range(self.RECENTRE_MOVES):
             lo, hi = self._g_bounds()
@@ -144,7 +145,7 @@ class GRefit:
             on_edge = (np.abs(self.g_p - lo) < 1e-3 * span) | (np.abs(hi - self.g_p) < 1e-3 * span)
             if not np.any(on_edge):
                 break
-            before = (self._refit_gap_fit(), (self._f0, self._g_num, self._g_den, self._g_free, self.g_p))
+            before = (self._refit_gap_fit(), self._state())
             self._init_g(self.input_nl(self.g_p), self.linear(self.g_p))
             self.g_p = self._fit_baseline_g()
             if not self._refit_gap_fit() < before[0]:
@@ -154,6 +155,10 @@ class GRefit:
         if moved and not self._refit_gap_val() ** 2 <= min_ratio * self.sigma ** 2:
             self._restore(first)
 
+    def _state(self) -> tuple:
+        """What :meth:`_init_g` and a baseline refit set, for :meth:`_restore`."""
+        return self._f0, self._g_num, self._g_den, self._g_free, self.g_p
+
     def _restore(self, state) -> None:
         self._f0, self._g_num, self._g_den, self._g_free, self.g_p = state
         self._g_cache = {}
@@ -161,7 +166,7 @@ class GRefit:
     def _refit_gap_val(self) -> float:
         """The baseline's RMS gap on the validation records (h re-estimated)."""
         x = self._refit_predict(None, None, "val")
-        return float(np.sqrt(np.mean(np.concatenate([(y - xi)[m] for y, xi, m in zip(self.yv, x, self.mv)]) ** 2)))
+        return rms(np.concatenate([(y - xi)[m] for y, xi, m in zip(self.yv, x, self.mv)]))
 
     def _refit_gap_fit(self) -> float:
         """The baseline's residual on the fit records (h re-estimated), for :meth:`_recentre`."""
