@@ -42,6 +42,7 @@ from hwid import HwidError, adequacy
 from hwid.identify.defaults import CLEARLY_BETTER, MODEL_ERROR_RATIO, RAIL_SHRINK, RAIL_TRIES
 from hwid.identify.rails import rail_values
 from hwid.identify.result import point_text
+from hwid.masks import runs
 from hwid.model import Actuator, HWModel
 from hwid.rundir import HISTORY, LINEAR, NONLINEAR, RIG_JOURNAL, WHOLE
 
@@ -641,8 +642,7 @@ def held_starts(model: HWModel, parts, starts: dict) -> dict:
         u = np.asarray(r.u, float)
         sig = model.simulate(u, r.dt, gear=first["gear"], rest=first["rest"], position=first.get("position"))
         acted = model.actuate(u, r.dt, first.get("position"))
-        idx = np.flatnonzero(np.diff(np.concatenate([[0], samples.astype(int), [0]])))
-        for k, a in enumerate(idx[::2]):
+        for k, (a, _) in enumerate(runs(samples)):
             if a == 0:
                 continue
             st = {"gear": float(sig.v[a - 1]), "rest": float(sig.w[a - 1])}
