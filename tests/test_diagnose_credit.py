@@ -16,7 +16,7 @@ import yaml
 
 from hwid import config
 from hwid.diagnose import diagnose
-from hwid.diagnose.conclude import second_test
+from hwid.diagnose.conclude import Gaps, credit_from_the_model_as_identified, second_test
 from hwid.diagnose.gap import NoiseFloor
 from hwid.diagnose.verdict import RELEVANT, Candidate, Relevance, eligible, explained_fraction, verdict
 
@@ -64,6 +64,30 @@ def test_a_candidate_that_stands_in_for_something_else_does_not_make_the_gap_sig
     assert by["effect"] == "time_delay" and not by["significant"]
     _, by = second_test([fric], base, nf, False, 20000.0, refloor_first=False, min_share=0.0, relevant=rel)
     assert by is None
+
+
+@pytest.mark.parametrize("modes, hint, block, held", [
+    ([(3.1, 0.19)], 0.0, 0.0, ("resonance",)),          # a two-mass drive's own mode in the identified G
+    ([], 0.146, 0.0, ("time_delay",)),                   # excess phase as a 0.146 s delay in a rational G
+    ([(3.1, 0.19)], 0.3, 0.3, ("resonance",)),           # a delay fitted as a block is no phase G holds
+])
+def test_what_the_identified_g_holds_is_indistinguishable_from_its_effect(modes, hint, block, held):
+    """An identified model that predicts the validation records within the noise as it is, whose
+    refit baseline took a mode or excess phase out of G and missed by more: every effect is measured
+    against the model as it is, and the effect that would put back what G holds is the one the
+    records cannot tell from `none` (G's own, or added to a G without it)."""
+    from types import SimpleNamespace
+    n, sigma = 20000, 0.01
+    nf = NoiseFloor(sigma=sigma, kappa=1.0, n=n, slow_rms=0.0, slow_z=0.0, surrogate=np.zeros(1))
+    fitter = SimpleNamespace(modes=modes, cancelled_pairs=[], delay_hint=hint, delay_block=block, gap_ref=1.8 * sigma)
+    gaps = Gaps([], 1.0 * sigma, fitter.gap_ref, n, fitter, nf, 1.25)
+    credit_from_the_model_as_identified(gaps, lambda *_: None)
+    assert gaps.held_effects == held
+    assert gaps.gap_ref == fitter.gap_ref == 1.0 * sigma and "the model's own" in gaps.as_identified
+    # a model that misses the validation records as it is has nothing of its own to stand on
+    missed = Gaps([], 1.5 * sigma, 1.8 * sigma, n, SimpleNamespace(**{**vars(fitter), "gap_ref": 1.8 * sigma}), nf, 1.25)
+    credit_from_the_model_as_identified(missed, lambda *_: None)
+    assert missed.held_effects == () and missed.as_identified == "" and missed.gap_ref == 1.8 * sigma
 
 
 @pytest.mark.parametrize("base, after, sigma", [

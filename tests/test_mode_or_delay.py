@@ -83,6 +83,7 @@ def test_mode_and_delay_rigs_never_the_wrong_one_alone(tmp_path, driver, truth, 
     name, alike = s["verdict"]["effect"], s["verdict"]["indistinguishable_from"]
     if identified and name == "none":
         assert s["gap_before"] <= 1.1 * s["noise_floor"]
+        assert truth in alike       # the effect that would put back what G holds: G's own or added, unknown
         refit = s["model_refit"]
         if truth == "time_delay":
             assert "excess phase" in s["verdict"]["why"]

@@ -141,8 +141,12 @@ class Gaps:
     test: gap.GapTest | None = None
     id_err: dict | None = None
     #: why a ``none`` verdict is none where the model as identified is the baseline
-    #: (:func:`_credit_from_the_model_as_identified`)
+    #: (:func:`credit_from_the_model_as_identified`)
     as_identified: str = ""
+    #: the catalogue effects that would put back what the model as identified holds in its G
+    #: (``resonance`` for a lightly damped mode, ``time_delay`` for excess phase): where the verdict
+    #: is ``none`` on that ground, its ``indistinguishable_from``
+    held_effects: tuple = ()
 
     def test_of(self, gap_after: float) -> gap.GapTest:
         """What an effect leaves, through the test that found the gap."""
@@ -242,7 +246,7 @@ def gap_test_step(ctx: Context) -> Gaps:
                                keep_modes=identified and ctx.from_logs)
     gaps = Gaps(res_before, gap.gap(res_before, val.m_val), fitter.gap_ref, n_val, fitter, floor, min_ratio)
     if identified:
-        _credit_from_the_model_as_identified(gaps, ctx.echo)
+        credit_from_the_model_as_identified(gaps, ctx.echo)
     if ctx.model_adequacy is not None and ctx.model_adequacy.misfit:
         ctx.echo(describe_misfit(ctx))
     if identified:
@@ -258,7 +262,7 @@ def gap_test_step(ctx: Context) -> Gaps:
     return gaps
 
 
-def _credit_from_the_model_as_identified(gaps: Gaps, echo) -> None:
+def credit_from_the_model_as_identified(gaps: Gaps, echo) -> None:
     """An identified model that predicts the validation records within the noise as it is leaves
     nothing to credit: where the baseline's refit took something out of G (a lightly damped mode
     outside the band, excess phase, a near-cancelling pair) and so missed by more, every effect is
@@ -287,6 +291,7 @@ def _credit_from_the_model_as_identified(gaps: Gaps, echo) -> None:
     held = [f"a lightly damped mode at {w:.4g} rad/s (zeta {z:.3g})" for w, z in fitter.modes]
     held += [f"a pole at {p:.3g} rad/s and a zero at {z:.3g} rad/s" for p, z in fitter.cancelled_pairs]
     held += [f"excess phase (as a delay of {fitter.delay_hint:.3g} s)"] if fitter.delay_hint > 0 else []
+    gaps.held_effects = ("resonance",) * bool(fitter.modes) + ("time_delay",) * bool(phase > 0)
     gaps.as_identified = (f"the identified model predicts the validation records within the noise floor as it is, "
                           f"with {' and '.join(held)} in its G: that is the model's own, no effect is credited with it")
     fitter.gap_ref = gaps.gap_ref = gaps.gap_before
@@ -376,6 +381,10 @@ def write_result(ctx: Context, gaps: Gaps, cands, drift_ok: bool, by_effect, d: 
         summary["test"]["after_verdict"] = gaps.test_of(d.verdict.gap_after).to_dict()
     if d.why:
         summary["verdict"]["why"] = d.why
+    if d.verdict == "none" and gaps.as_identified and d.why == gaps.as_identified:
+        # the plant has what the model's G holds; whether that is G's own or an effect added to a
+        # G without it, these records cannot tell: the effect that would put it back is named
+        summary["verdict"]["indistinguishable_from"] = list(gaps.held_effects)
     if d.remainder is not None:
         summary["test"]["verdict_remainder"] = d.remainder
     if d.level is not None:
