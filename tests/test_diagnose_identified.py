@@ -128,6 +128,7 @@ def test_identified_resonance_outside_the_band(tmp_path_factory):
     assert s["gap_after"] < 1.5 * s["noise_floor"]
 
 
+@pytest.mark.slow      # identification and diagnosis: 42 s on one core of a shared machine
 def test_identified_fast_rate_limit_before_a_backlash_inverse(tmp_path_factory):
     """A 5.6 units/s actuator before a Backlash-Inverse gear (the blind check's rig that stayed
     unexplained, 0.41): the slews of the broadband and fast sine experiments are what it shows.
@@ -279,6 +280,7 @@ def test_identified_clip_between_the_lags_of_g_is_unexplained(tmp_path):
     assert s["gap_after"] == s["gap_before"] > 1.5 * s["noise_floor"]
 
 
+@pytest.mark.slow      # the paper plant identified and diagnosed: 111 s on one core of a shared machine
 def test_identified_input_clip_on_the_paper_plant_stands_its_confirmation(tmp_path):
     """The paper's plant behind an actuator clipping u to [-1.23, 0.73], identified from the rig:
     the clip, the cause, makes no validation experiment worse than the model without it and is
