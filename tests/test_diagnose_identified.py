@@ -128,6 +128,7 @@ def test_identified_resonance_outside_the_band(tmp_path_factory):
     assert s["gap_after"] < 1.5 * s["noise_floor"]
 
 
+@pytest.mark.slow      # identification and diagnosis: 42 s on one core of a shared machine
 def test_identified_fast_rate_limit_before_a_backlash_inverse(tmp_path_factory):
     """A 5.6 units/s actuator before a Backlash-Inverse gear (the blind check's rig that stayed
     unexplained, 0.41): the slews of the broadband and fast sine experiments are what it shows.
@@ -255,9 +256,12 @@ def _paper_identified(tmp_path, driver: str) -> dict:
 
 
 @pytest.mark.slow     # the whole fit from the stages' model (9-11 min on a shared machine) and the diagnosis
-@pytest.mark.xfail(strict=False, reason="known failure on main (the three branches merged): no confirmation "
-                   "runs, as at e5357c1; it ran on the helper's branch, before the refit range was gated and "
-                   "the whole fit's modes kept (open on issue 47)")
+@pytest.mark.xfail(strict=False, reason="passes or fails with the identification's worker and BLAS-thread "
+                   "settings, on h_regress's code as on main: in one process with one BLAS thread (pytest -n 2's "
+                   "workers) the whole fit differs slightly (0.019458 against 0.019487 on its records), the "
+                   "validation sine falls at 0.753 rad/s, not 0.719, and there the input clip adds 1.00 of the "
+                   "noise power at z 16.3 to a sine the refit misses by 2.91: below confirm.NEAR_SHARE, so "
+                   "input_saturation is named (open on issue 47)")
 def test_identified_clip_between_the_lags_of_g_is_unexplained(tmp_path):
     """The paper's plant with a clip between G's two lags, identified from the rig: the two stages'
     model diverges on its own records (294x the floor), and the whole fit from it reaches 1.9x, a
@@ -276,6 +280,7 @@ def test_identified_clip_between_the_lags_of_g_is_unexplained(tmp_path):
     assert s["gap_after"] == s["gap_before"] > 1.5 * s["noise_floor"]
 
 
+@pytest.mark.slow      # the paper plant identified and diagnosed: 111 s on one core of a shared machine
 def test_identified_input_clip_on_the_paper_plant_stands_its_confirmation(tmp_path):
     """The paper's plant behind an actuator clipping u to [-1.23, 0.73], identified from the rig:
     the clip, the cause, makes no validation experiment worse than the model without it and is
