@@ -189,3 +189,47 @@ def test_cubic_branches_of_a_backlash_inverse_bent_either_way_are_named(tmp_path
     assert s["gap_before"] > 3 * s["noise_floor"]
     assert s["gap_after"] <= 1.5 * s["noise_floor"]
     assert abs(s["noise_floor"] - R._InverseRig.NOISE) < 0.15 * R._InverseRig.NOISE
+
+
+@pytest.mark.parametrize("mends", [True, False])
+def test_an_effect_must_mend_the_identified_models_own_misfit(monkeypatch, mends):
+    """The identified model misses its own records (G's gain 0.7 of the plant's, fitted across a
+    change): a named effect is credited only where the model with it added reaches those records
+    too (here: the plant itself), not where it leaves the same misfit (the wrong gain kept, a lag
+    added) -- then it stands in for a plant that changed, and the verdict is `unexplained`."""
+    from types import SimpleNamespace
+
+    from hwid import adequacy
+    from hwid.blocks.linear import LinearBlock
+    from hwid.blocks.static import PolynomialH
+    from hwid.diagnose import model_check
+    from hwid.model import HWModel, InputNonlinearity
+    from hwid.plant import Record
+
+    def plant(gain, pole=2.0, lag=None):
+        den = (1.0, pole) if lag is None else tuple(np.polymul([1.0, pole], [lag, 1.0]))
+        return HWModel(InputNonlinearity("backlash", 1.0, 1.2, 0.4, -0.3), LinearBlock((gain * pole,), den),
+                       PolynomialH((0, 0.5, 0, -0.2, 0, 0.1)))
+
+    rng, dt, sigma = np.random.default_rng(5), 0.05, 0.01
+    levels = np.repeat([-1, -.6, -.2, .2, .6, 1, .7, .3, -.1, -.5, -.9], int(6 / dt))
+    wave = 0.9 * np.sin(2 * np.pi * 0.3 * np.arange(int(30 / dt)) * dt)
+    records = [Record(n, dt, u, plant(1.0).simulate(u, dt).x + sigma * rng.standard_normal(u.size))
+               for n, u in (("levels", levels), ("sine", wave))]
+    identified = plant(0.7)
+    ad = adequacy.assess(identified, records)
+    assert ad.verdict == "misfit" and ad.ratio > 5
+    ctx = SimpleNamespace(identified=True, model_adequacy=ad, sim_model=identified, adequacy_on="its own records",
+                          origin={}, echo=lambda *_: None)
+    with_effect = plant(1.0) if mends else plant(0.7, lag=0.3)
+    monkeypatch.setattr(model_check, "corrected", lambda verdict, fitter, model: (with_effect, True))
+    verdict = Candidate("sensor_lag", "output", {"tau_s": 0.3}, sigma, sigma, 1.0, 10.0, 1.0)
+    why = model_check.effect_misses_own_records(ctx, verdict, None, 1.25, records, None)
+    if mends:
+        assert why == ""
+    else:
+        assert "does not account for the model's own misfit" in why and "sensor_lag" in why
+    # nothing to check for a model adequate on its records, or for no named effect
+    assert model_check.effect_misses_own_records(ctx, "none", None, 1.25, records, None) == ""
+    fine = SimpleNamespace(**{**vars(ctx), "model_adequacy": adequacy.assess(plant(1.0), records)})
+    assert model_check.effect_misses_own_records(fine, verdict, None, 1.25, records, None) == ""
