@@ -21,8 +21,7 @@ from hwid.diagnose.floor_lines import verdict_with_lines
 from hwid.diagnose.log_drift import (drift_from_residual, drift_leaves_little, drift_takes_the_excess,
                                      input_predicts_it, repeats_under_best)
 from hwid.diagnose.model_check import (adequacy_tail, adequacy_where, changed_or_inadequate, describe_misfit,
-                                      effect_misses_own_records, fails_own_records, model_adequacy,
-                                      not_none_from_a_misfit)
+                                      fails_own_records, model_adequacy, not_none_from_a_misfit)
 from hwid.diagnose.modelsim import ModelSim
 from hwid.diagnose.next_experiment import propose_mode_sine
 from hwid.diagnose.verdict import (Candidate, Relevance, alternative_baseline, eligible, indistinguishable,
@@ -148,8 +147,6 @@ class Gaps:
     #: (``resonance`` for a lightly damped mode, ``time_delay`` for excess phase): where the verdict
     #: is ``none`` on that ground, its ``indistinguishable_from``
     held_effects: tuple = ()
-    #: the identified model's own records and their starts (``(records, starts)``)
-    own: tuple = ((), None)
 
     def test_of(self, gap_after: float) -> gap.GapTest:
         """What an effect leaves, through the test that found the gap."""
@@ -218,10 +215,6 @@ def conclude(ctx: Context) -> dict:
         if by_effect is not None and by_effect["significant"]:
             gaps.test = dataclasses.replace(gaps.test, significant=True)
     decision = decide(ctx, gaps, cands, drift_ok, without)
-    stands_in = effect_misses_own_records(ctx, decision.verdict, gaps.fitter, gaps.min_ratio, *gaps.own)
-    if stands_in:
-        ctx.echo(stands_in)
-        decision.verdict, decision.why = "unexplained", stands_in
     if decision.verdict == "none" and on_rails:
         decision.verdict, decision.why = (named_from_rails(cands, on_rails, ctx.val.design.dt, ctx.echo)
                                           or (decision.verdict, decision.why))
@@ -257,9 +250,8 @@ def gap_test_step(ctx: Context) -> Gaps:
     if ctx.model_adequacy is not None and ctx.model_adequacy.misfit:
         ctx.echo(describe_misfit(ctx))
     if identified:
-        gaps.own = (ctx.origin.pop("records", []), ctx.origin.pop("starts", None))
-        gaps.id_err = identification_error(ctx.sim_model, gaps.own[0], val.design.dt, val.design.settle_s,
-                                           floor.sigma, gaps.own[1])
+        gaps.id_err = identification_error(ctx.sim_model, ctx.origin.pop("records", []), val.design.dt,
+                                           val.design.settle_s, floor.sigma, ctx.origin.pop("starts", None))
         ctx.echo(f"identification error: gap {gaps.id_err['gap']:.4g} on its own records, excess "
                  f"{gaps.id_err['excess']:.4g}")
         if ctx.from_logs and gaps.id_err["records"]:

@@ -10,16 +10,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from hwid import HwidError, adequacy
+from hwid import adequacy
 from hwid.diagnose import gap
 from hwid.diagnose.context import Context
-from hwid.diagnose.corrected import corrected
-from hwid.diagnose.verdict import Candidate
 from hwid.identify.rails import rail_values
-
-#: the share of the identified model's mean-square excess on its own records that a named effect must
-#: remove there too, where that model fails them (:func:`effect_misses_own_records`)
-OWN_SHARE = 0.5
 
 
 def adequacy_where(ctx: Context) -> str:
@@ -145,39 +139,3 @@ def changed_or_inadequate(ctx: Context, gap_before: float, gap_ref: float, n_val
            f"({gap_ref:.4g} = {gap_ref / floor.sigma:.3g}x); {cause}. No effect is credited with what the refit "
            "removes: unexplained")
     return why
-
-
-def effect_misses_own_records(ctx: Context, verdict, fitter, min_ratio: float, records, starts) -> str:
-    """Why a named effect is not credited where the identified model fails its own records
-    (:func:`fails_own_records`) and the model with the effect added (:func:`hwid.diagnose.corrected.corrected`:
-    F, G and h as refitted with it) still misses them: it removes less than :data:`OWN_SHARE` of
-    the model's mean-square excess over the floor there. ``""`` where the effect does, or the check
-    does not apply (a given model, a model adequate on its records, no deterministic effect).
-
-    An effect the plant has acts on every record, the identification's too: where it is what the
-    identified model lacks, adding it mends the model's own misfit as well. A plant that changed
-    during the session (a gain that stepped after the identification's records) misses them either
-    way; an effect fitted to the plant as it is after the change then only stands in for the
-    change (a thermal rig's gain step was named `sensor_lag`, the identified model at 13x the
-    floor on its own records)."""
-    ad = fails_own_records(ctx, min_ratio) if ctx.identified else None
-    records = [r for r in records or [] if getattr(r, "y", None) is not None]
-    if ad is None or not records or not isinstance(verdict, Candidate):
-        return ""
-    model, added = corrected(verdict, fitter, ctx.sim_model)
-    if not added:
-        return ""
-    try:
-        after = adequacy.assess(model, records, starts=starts, off_rails=rail_values(records))
-    except (HwidError, ValueError, FloatingPointError) as err:
-        ctx.echo(f"{verdict.effect} on the model's own records: not simulated ({err})")
-        return ""
-    s2 = ad.floor.sigma ** 2
-    before_ms, after_ms = ad.rms_fit ** 2 - s2, after.rms_fit ** 2 - s2
-    if not np.isfinite(after.rms_fit) or after_ms <= (1.0 - OWN_SHARE) * before_ms:
-        return ""
-    return (f"the identified model misses {adequacy_where(ctx)} (RMS {ad.rms_fit:.4g} = {ad.ratio:.3g}x their floor), "
-            f"and with {verdict.effect} added it still does (RMS {after.rms_fit:.4g} = "
-            f"{after.rms_fit / ad.floor.sigma:.3g}x): the effect does not account for the model's own misfit, so "
-            "the plant changed while it was identified, or the model was not adequate, and the effect only stands in "
-            "for that: unexplained")
