@@ -21,6 +21,9 @@ def adequacy_where(ctx: Context) -> str:
     if ctx.adequacy_on:
         return ctx.adequacy_on
     if ctx.identified and ctx.origin.get("records"):
+        if ctx.origin.get("baseline") == "actuator taken out":
+            # the diagnosis's baseline, not the model as identified (JSON ``model.adequacy``)
+            return "its own records (those it was identified from), with its actuator taken out"
         return "its own records (those it was identified from)"
     return "the validation records"
 
