@@ -356,7 +356,7 @@ def stages_or_whole(cfg, ident: Identification, out, echo=print) -> Identificati
     last periods) is judged on the same records the same way, and replaces it where it is adequate or its RMS is at most
     :data:`~hwid.identify.defaults.CLEARLY_BETTER` of theirs; the route then says so. A model that
     cannot be judged on its records (its G so slow that nothing is left after the burn-in, on a
-    floor the data determine) is replaced by an adequate whole fit only. With
+    floor the data determine) is replaced by a whole fit that can be, adequate or not. With
     ``identification.whole.enabled`` the whole fit runs beside in any case (``whole.h5``). A model
     behind an input dead zone (stage 1's, :func:`deadzone_behind`) stays the stages': the whole fit
     has no dead zone ahead of F."""
@@ -382,7 +382,8 @@ def stages_or_whole(cfg, ident: Identification, out, echo=print) -> Identificati
     res, paths = _said(cfg, fitter, out, echo, t0, role="beside")
     beside = replace(ident, whole=res, paths={**ident.paths, **paths})
     whole_model = res.model()
-    if whole.verdict != "adequate" and (unjudged or not whole.rms_fit <= CLEARLY_BETTER * stages.rms_fit):
+    judged = unjudged and whole.verdict == "misfit" and np.isfinite(whole.rms_fit)   # beats one never judged
+    if whole.verdict != "adequate" and not judged and (unjudged or not whole.rms_fit <= CLEARLY_BETTER * stages.rms_fit):
         note = (f"the whole model fitted from the stages' is no better on their records (RMS {whole.rms_fit:.4g} "
                 f"for their {stages.rms_fit:.4g}): the model stays the stages'")
         echo(note)
@@ -673,9 +674,8 @@ def _whole_on_records(cfg, pieces, echo):
         echo(f"stage 1 from the fit part's levels: {hist.type}, d+ = {point_text(hist.d_plus, hist.ci['d_plus'])}, "
              f"d- = {point_text(hist.d_minus, hist.ci['d_minus'])}, "
              f"S^d = {hist.slope_down:.4g}" + (" (misfit: not used)" if hist.misfit else ": the borders' start"))
-    # G's pure delay fitted by name as well (a rational G alone stands in for a delay with fast
-    # poles the plant does not have, and then no excess phase is left for time_delay to name),
-    # then the actuator's slew rate and clip
+    # G's pure delay fitted by name as well (a rational G alone stands in for a delay with fast poles the
+    # plant does not have, and no excess phase is left for time_delay to name), then the slew and clip
     return WholeModelFit.from_config(cfg, staged=True).fit_actuated(pieces, borders=borders), how
 
 
