@@ -17,6 +17,7 @@ from scipy.optimize import least_squares
 from hwid.diagnose import effects as effect_models
 from hwid.diagnose.baseline import cancel_slow_pairs, mirror_rhp_zeros, split_modes
 from hwid.diagnose.gap import rms
+from hwid.diagnose.intervals import ON_BOX
 from hwid.diagnose.modelsim import ReblockedSim
 from hwid.model import InputNonlinearity
 
@@ -142,7 +143,7 @@ class GRefit:
         for _ in range(self.RECENTRE_MOVES):
             lo, hi = self._g_bounds()
             span = np.maximum(hi - lo, 1e-12)
-            on_edge = (np.abs(self.g_p - lo) < 1e-3 * span) | (np.abs(hi - self.g_p) < 1e-3 * span)
+            on_edge = (np.abs(self.g_p - lo) < ON_BOX * span) | (np.abs(hi - self.g_p) < ON_BOX * span)
             if not np.any(on_edge):
                 break
             before = (self._refit_gap_fit(), self._state())

@@ -82,8 +82,8 @@ JACKKNIFE_MIN_GROUPS = 3
 MISFIT_Z = 5.0
 #: a direction of the Jacobian whose singular value is below this share of the largest is not seen
 SEEN = 1e-8
-#: a parameter within this share of its unit range from an end of it is on that end (the share the
-#: baseline's refit takes for its own box, :meth:`hwid.diagnose.g_refit.GRefit._recentre`)
+#: a parameter within this share of its unit range from an end of it is on that end (here and for
+#: the baseline's refit box, :meth:`hwid.diagnose.g_refit.GRefit._recentre`)
 ON_BOX = 1e-3
 
 
